@@ -1,0 +1,6 @@
+"""Controllers: the attitude generator (Algorithms 1 and 2) and the tracking controller."""
+
+from drake_uuv.controllers.attitude_generator import AttitudeGenerator
+from drake_uuv.controllers.tracking_controller import TrackingController
+
+__all__ = ["AttitudeGenerator", "TrackingController"]

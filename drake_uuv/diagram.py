@@ -1,0 +1,148 @@
+"""The one builder of the closed loop: every system and logger named, every port wired here."""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common import RandomDistribution
+from pydrake.math import RollPitchYaw, RotationMatrix
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import LogVectorOutput, RandomSource, VectorLogSink
+
+from drake_uuv.controllers import AttitudeGenerator, TrackingController
+from drake_uuv.estimators import RangeDifferenceKalmanFilter
+from drake_uuv.plants import TargetRandomWalk, UuvPlant
+from drake_uuv.scenario import Scenario
+from drake_uuv.sensors import DualSonar
+
+# Logger name → (system name, output port name). Each logs its port once per step.
+LOGGED_PORTS: dict[str, tuple[str, str]] = {
+    "uuv_state": ("uuv", "state"),
+    "R_WB": ("uuv", "R_WB"),
+    "target_state": ("target", "state"),
+    "ranges": ("sonar", "ranges"),
+    "Y": ("sonar", "Y"),
+    "m": ("sonar", "m"),
+    "Gamma": ("sonar", "Gamma"),
+    "q_s": ("sonar", "q_s"),
+    "x_hat": ("estimator", "x_hat"),
+    "P": ("estimator", "P"),
+    "u1_B": ("tracking_controller", "u1_B"),
+    "w_W": ("attitude_generator", "w_W"),
+    "a_W": ("tracking_controller", "a_W"),
+}
+
+
+@dataclass
+class UuvDiagram:
+    """The built diagram and handles a caller needs: its systems and loggers by name."""
+
+    diagram: Diagram
+    systems: dict[str, LeafSystem]
+    loggers: dict[str, VectorLogSink]
+
+
+def make_estimator(scenario: Scenario) -> LeafSystem:
+    """The estimator named by ``estimator.type``."""
+    e = scenario.estimator
+    if e.type == "kf":
+        return RangeDifferenceKalmanFilter(
+            scenario.time_step,
+            np.asarray(scenario.target.acceleration_covariance),
+            np.asarray(e.initial_estimate),
+            np.asarray(e.initial_covariance),
+        )
+    raise ValueError(f"estimator.type: unknown estimator, got {e.type!r}")
+
+
+def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) -> UuvDiagram:
+    """Builds the paper's closed loop from a validated scenario.
+
+    Systems: ``uuv``, ``target``, ``sonar``, ``estimator``, ``attitude_generator``,
+    ``tracking_controller``, and one named ``RandomSource`` per random input port
+    (``target_noise``, ``range_noise``, ``rotation_noise``). Loggers are ``log_<name>`` for
+    each entry of :data:`LOGGED_PORTS`, sampled once per step so column k holds the value at
+    step k, before that step's update.
+
+    Pass a ``builder`` to add systems of your own (a visualiser, say) before building.
+    """
+    t = scenario.time_step
+    builder = builder or DiagramBuilder()
+    R0 = RotationMatrix(RollPitchYaw(np.asarray(scenario.uuv.initial_rpy))).matrix()
+
+    systems: dict[str, LeafSystem] = {
+        "uuv": UuvPlant(
+            t,
+            np.asarray(scenario.uuv.initial_position),
+            np.asarray(scenario.uuv.initial_velocity),
+            R0,
+        ),
+        "target": TargetRandomWalk(
+            t,
+            np.asarray(scenario.target.acceleration_covariance),
+            np.asarray(scenario.target.initial_position),
+            np.asarray(scenario.target.initial_velocity),
+        ),
+        "sonar": DualSonar(
+            np.asarray(scenario.sonar.baseline),
+            np.asarray(scenario.sonar.noise_variances),
+            scenario.sonar.samples_per_step,
+            scenario.estimator.noise_model,
+        ),
+        "estimator": make_estimator(scenario),
+        "attitude_generator": AttitudeGenerator(
+            scenario.attitude.mode,
+            t,
+            np.asarray(scenario.sonar.baseline),
+            scenario.attitude.rho,
+            scenario.attitude.h_amplitude,
+            scenario.attitude.h_frequency,
+            scenario.attitude.max_angular_rate,
+        ),
+        "tracking_controller": TrackingController(
+            t, scenario.tracking.alpha, np.asarray(scenario.tracking.desired_relative_position)
+        ),
+    }
+    for name, system in systems.items():
+        builder.AddNamedSystem(name, system)
+    uuv, target, sonar = systems["uuv"], systems["target"], systems["sonar"]
+    estimator, attitude, controller = (
+        systems["estimator"],
+        systems["attitude_generator"],
+        systems["tracking_controller"],
+    )
+
+    connect = builder.Connect
+    connect(uuv.GetOutputPort("state"), sonar.GetInputPort("uuv_state"))
+    connect(uuv.GetOutputPort("R_WB"), sonar.GetInputPort("R_WB"))
+    connect(target.GetOutputPort("state"), sonar.GetInputPort("target_state"))
+    for port in ("Y", "m", "Gamma", "q_s"):
+        connect(sonar.GetOutputPort(port), estimator.GetInputPort(port))
+    connect(controller.GetOutputPort("a_W"), estimator.GetInputPort("a_W"))
+    connect(estimator.GetOutputPort("x_hat"), controller.GetInputPort("x_hat"))
+    connect(uuv.GetOutputPort("R_WB"), controller.GetInputPort("R_WB"))
+    connect(uuv.GetOutputPort("R_WB"), attitude.GetInputPort("R_WB"))
+    connect(controller.GetOutputPort("u1_B"), uuv.GetInputPort("u1_B"))
+    connect(attitude.GetOutputPort("w_W"), uuv.GetInputPort("w_W"))
+
+    # Every random input port gets its own named, seeded source sampled once per step.
+    random_ports = {
+        "target_noise": target.GetInputPort("acceleration_noise"),
+        "range_noise": sonar.GetInputPort("range_noise"),
+    }
+    if attitude.HasInputPort("rotation_noise"):
+        random_ports["rotation_noise"] = attitude.GetInputPort("rotation_noise")
+    for name, port in random_ports.items():
+        source = builder.AddNamedSystem(
+            name, RandomSource(RandomDistribution.kGaussian, port.size(), t)
+        )
+        connect(source.get_output_port(), port)
+
+    loggers = {}
+    for name, (system_name, port_name) in LOGGED_PORTS.items():
+        logger = LogVectorOutput(systems[system_name].GetOutputPort(port_name), builder, t)
+        logger.set_name(f"log_{name}")
+        loggers[name] = logger
+
+    diagram = builder.Build()
+    diagram.set_name("uuv_closed_loop")
+    return UuvDiagram(diagram=diagram, systems=systems, loggers=loggers)

@@ -1,0 +1,368 @@
+"""Scenario: every number of a run, as nested dataclasses loaded from YAML.
+
+A scenario file is loaded with Drake's ``yaml_load_typed`` after a pre-check that names the
+offending field (Drake's loader does not), then validated as a whole by
+:func:`validate_scenario`. Every error is a :class:`ScenarioError` whose message is one line
+naming the dotted field and the value, e.g. ``sonar.noise_variances: must be > 0, got [-0.01,
+0.01]``.
+
+Defaults are the paper's §IV numbers (design.md §1), so ``Scenario()`` is the paper scenario.
+"""
+
+# No `from __future__ import annotations`: Drake's yaml loader needs the real field types.
+import dataclasses
+import math
+import types
+import typing
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from pydrake.common.yaml import yaml_load_typed
+
+NOISE_MODELS = ("derived", "paper_printed")
+ATTITUDE_MODES = ("fixed", "random", "trajectory")
+ESTIMATOR_TYPES = ("kf",)
+TRACKING_TYPES = ("paper",)
+ALPHA_PROVEN_INTERVAL = (1.0 - 1.0 / math.sqrt(2.0), 1.0 + 1.0 / math.sqrt(2.0))
+
+
+class ScenarioError(ValueError):
+    """A scenario field has a bad value; the message names the field and the value."""
+
+
+def _identity(n: int) -> list[list[float]]:
+    return np.eye(n).tolist()
+
+
+@dataclass
+class UuvConfig:
+    """Initial state of the vehicle (world frame W, body frame B)."""
+
+    initial_position: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    initial_velocity: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    # Roll-pitch-yaw [rad] of R_WB(0); the paper's R(0) = I.
+    initial_rpy: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+@dataclass
+class TargetConfig:
+    """The non-cooperative target: a random walk in acceleration."""
+
+    initial_position: list[float] = field(default_factory=lambda: [1.0, 2.0, 2.0])
+    initial_velocity: list[float] = field(default_factory=lambda: [0.02, 0.1, 0.1])
+    # W, covariance of the target's acceleration [m²/s⁴].
+    acceleration_covariance: list[list[float]] = field(
+        default_factory=lambda: [[0.004, 0.0, 0.0], [0.0, 0.001, 0.0], [0.0, 0.0, 0.001]]
+    )
+
+
+@dataclass
+class SonarConfig:
+    """Two monostatic sonars at ±½ baseline about the body origin."""
+
+    # b = ᵇp_s1 − ᵇp_s2 in the body frame [m].
+    baseline: list[float] = field(default_factory=lambda: [-1.0, 1.0, 0.0])
+    # η1, η2: range noise variances [m²].
+    noise_variances: list[float] = field(default_factory=lambda: [0.01, 0.01])
+    # f: range samples per sonar and step (the first forms Y; all estimate d̄²).
+    samples_per_step: int = 1
+
+
+@dataclass
+class EstimatorConfig:
+    """The relative-state estimator."""
+
+    type: str = "kf"
+    # Mean and variance of the Y noise: "derived" (design.md §1) or the paper's printed formula.
+    noise_model: str = "derived"
+    # Υ̂(0|−1) = [q̂, ϑ̂] and P(0|−1). The paper sets every unstated initial value to zero.
+    initial_estimate: list[float] = field(default_factory=lambda: [0.0] * 6)
+    initial_covariance: list[list[float]] = field(default_factory=lambda: _identity(6))
+
+
+@dataclass
+class AttitudeConfig:
+    """The attitude generator: fixed, Algorithm 1 (random) or Algorithm 2 (trajectory)."""
+
+    mode: str = "trajectory"
+    # Algorithm 2: ζ(k) = |b| [sin(ρkπ), cos(ρkπ), h(k)], h(k) = amplitude · cos(frequency·kπ).
+    rho: float = 1.0 / 24.0
+    h_amplitude: float = 0.5
+    h_frequency: float = 1.0 / 6.0
+    # Largest commanded |u2| [rad/s]; None means unlimited (the paper).
+    max_angular_rate: float | None = None
+
+
+@dataclass
+class TrackingConfig:
+    """The tracking controller holding q = R q* (q* in the body frame)."""
+
+    type: str = "paper"
+    alpha: float = 1.2
+    desired_relative_position: list[float] = field(default_factory=lambda: [-2.0, -2.0, 0.0])
+    # The paper proves bounded tracking only for α in (1 − 1/√2, 1 + 1/√2).
+    allow_unproven_alpha: bool = False
+
+
+@dataclass
+class Scenario:
+    """One closed-loop run. ``Scenario()`` is the paper's §IV simulation."""
+
+    time_step: float = 0.5
+    steps: int = 500
+    random_seed: int = 0
+    # First step k of the steady-state window over which metrics are taken.
+    steady_state_start: int = 200
+    uuv: UuvConfig = field(default_factory=UuvConfig)
+    target: TargetConfig = field(default_factory=TargetConfig)
+    sonar: SonarConfig = field(default_factory=SonarConfig)
+    estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
+    attitude: AttitudeConfig = field(default_factory=AttitudeConfig)
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
+
+
+# ----------------------------------------------------------------------------- loading
+
+
+def builtin_scenarios() -> list[str]:
+    """Names of the scenario files shipped inside the package."""
+    folder = resources.files("drake_uuv") / "scenarios"
+    return sorted(
+        p.name.removesuffix(".yaml") for p in folder.iterdir() if p.name.endswith(".yaml")
+    )
+
+
+def resolve_scenario_path(name_or_path: str) -> Path:
+    """A shipped scenario name (``paper``) or a path to a YAML file."""
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        if not path.is_file():
+            raise ScenarioError(f"scenario: no such file, got {name_or_path!r}")
+        return path
+    shipped = resources.files("drake_uuv") / "scenarios" / f"{name_or_path}.yaml"
+    if not shipped.is_file():
+        raise ScenarioError(
+            f"scenario: no shipped scenario or file named {name_or_path!r} "
+            f"(shipped: {', '.join(builtin_scenarios())})"
+        )
+    return Path(str(shipped))
+
+
+def load_scenario(
+    name_or_path: str = "paper",
+    overrides: Iterable[str] = (),
+    seed: int | None = None,
+) -> Scenario:
+    """Loads, overrides (``dotted.key=value`` strings) and validates a scenario."""
+    path = resolve_scenario_path(name_or_path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as e:
+        raise ScenarioError(f"scenario file {str(path)!r}: not valid YAML ({_one_line(e)})") from e
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ScenarioError(f"scenario file {str(path)!r}: must be a mapping, got {data!r}")
+    for override in overrides:
+        apply_override(data, override)
+    if seed is not None:
+        data["random_seed"] = seed
+    return scenario_from_dict(data)
+
+
+def scenario_from_dict(data: dict[str, Any]) -> Scenario:
+    """Type-checks a plain dict against the schema, loads it with Drake and validates it."""
+    _check_types(Scenario, data, prefix="")
+    try:
+        scenario = yaml_load_typed(schema=Scenario, data=yaml.safe_dump(data))
+    except Exception as e:  # Drake's loader: the pre-check should already have caught it.
+        raise ScenarioError(f"scenario: {_one_line(e)}") from e
+    validate_scenario(scenario)
+    return scenario
+
+
+def apply_override(data: dict[str, Any], override: str) -> None:
+    """Applies one ``dotted.key=value`` (value parsed as YAML) to a scenario dict in place."""
+    if "=" not in override:
+        raise ScenarioError(f"--set: expected dotted.key=value, got {override!r}")
+    key, _, text = override.partition("=")
+    key = key.strip()
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise ScenarioError(f"{key}: value is not valid YAML, got {text!r}") from e
+    schema: Any = Scenario
+    node = data
+    parts = key.split(".")
+    for depth, part in enumerate(parts):
+        fields = {f.name: f for f in dataclasses.fields(schema)}
+        if part not in fields:
+            prefix = ".".join(parts[:depth])
+            raise ScenarioError(
+                f"{key}: unknown field {part!r}"
+                + (f" in {prefix!r}" if prefix else "")
+                + f" (known: {', '.join(fields)})"
+            )
+        field_type = _resolved_type(schema, part)
+        if depth == len(parts) - 1:
+            if dataclasses.is_dataclass(field_type):
+                raise ScenarioError(f"{key}: is a section; set one of its fields, got {text!r}")
+            node[part] = value
+            return
+        if not dataclasses.is_dataclass(field_type):
+            raise ScenarioError(f"{key}: {'.'.join(parts[: depth + 1])!r} has no sub-fields")
+        child = node.setdefault(part, {})
+        if not isinstance(child, dict):
+            child = node[part] = {}
+        node, schema = child, field_type
+
+
+def _resolved_type(schema: Any, name: str) -> Any:
+    return typing.get_type_hints(schema)[name]
+
+
+def _check_types(schema: Any, data: Any, prefix: str) -> None:
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{prefix.rstrip('.') or 'scenario'}: must be a mapping, got {data!r}")
+    hints = typing.get_type_hints(schema)
+    for key, value in data.items():
+        name = f"{prefix}{key}"
+        if key not in hints:
+            raise ScenarioError(f"{name}: unknown field (known: {', '.join(hints)})")
+        _check_value(hints[key], value, name)
+
+
+def _check_value(expected: Any, value: Any, name: str) -> None:
+    origin = typing.get_origin(expected)
+    if dataclasses.is_dataclass(expected):
+        _check_types(expected, value, prefix=f"{name}.")
+    elif origin in (typing.Union, types.UnionType):
+        options = typing.get_args(expected)
+        if value is None and type(None) in options:
+            return
+        _check_value(next(o for o in options if o is not type(None)), value, name)
+    elif origin is list:
+        if not isinstance(value, list):
+            raise ScenarioError(f"{name}: must be a list, got {value!r}")
+        (item_type,) = typing.get_args(expected)
+        for item in value:
+            _check_value(item_type, item, name)
+    elif expected is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ScenarioError(f"{name}: must be a number, got {value!r}")
+    elif expected is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ScenarioError(f"{name}: must be an integer, got {value!r}")
+    elif expected is bool:
+        if not isinstance(value, bool):
+            raise ScenarioError(f"{name}: must be true or false, got {value!r}")
+    elif expected is str:
+        if not isinstance(value, str):
+            raise ScenarioError(f"{name}: must be a string, got {value!r}")
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split())
+
+
+# -------------------------------------------------------------------------- validation
+
+
+def _fail(name: str, requirement: str, value: Any) -> None:
+    raise ScenarioError(f"{name}: {requirement}, got {value!r}")
+
+
+def _vector(name: str, value: list[float], size: int) -> np.ndarray:
+    array = np.asarray(value, dtype=float)
+    if array.shape != (size,):
+        _fail(name, f"must be a list of {size} numbers", value)
+    if not np.all(np.isfinite(array)):
+        _fail(name, "must be finite", value)
+    return array
+
+
+def _matrix(name: str, value: list[list[float]], size: int) -> np.ndarray:
+    if not all(isinstance(row, list) and len(row) == size for row in value) or len(value) != size:
+        _fail(name, f"must be a {size}×{size} matrix (list of {size} lists of {size})", value)
+    array = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(array)):
+        _fail(name, "must be finite", value)
+    return array
+
+
+def _positive(name: str, value: float, strict: bool = True) -> None:
+    if not math.isfinite(value) or (value <= 0.0 if strict else value < 0.0):
+        _fail(name, "must be > 0" if strict else "must be ≥ 0", value)
+
+
+def _spd(name: str, value: list[list[float]], size: int) -> np.ndarray:
+    array = _matrix(name, value, size)
+    if not np.allclose(array, array.T, rtol=0.0, atol=1e-12 * max(1.0, np.abs(array).max())):
+        _fail(name, "must be symmetric", value)
+    if np.linalg.eigvalsh(array).min() <= 0.0:
+        _fail(name, "must be positive definite", value)
+    return array
+
+
+def _choice(name: str, value: str, options: tuple[str, ...]) -> None:
+    if value not in options:
+        _fail(name, f"must be one of {', '.join(options)}", value)
+
+
+def validate_scenario(s: Scenario) -> None:
+    """Checks every field of a scenario; raises :class:`ScenarioError` on the first bad one."""
+    _positive("time_step", s.time_step)
+    if s.steps < 1:
+        _fail("steps", "must be ≥ 1", s.steps)
+    if s.random_seed < 0 or s.random_seed >= 2**32:
+        _fail("random_seed", "must be in [0, 2**32)", s.random_seed)
+    if not 0 <= s.steady_state_start < s.steps:
+        _fail("steady_state_start", f"must be in [0, steps={s.steps})", s.steady_state_start)
+
+    _vector("uuv.initial_position", s.uuv.initial_position, 3)
+    _vector("uuv.initial_velocity", s.uuv.initial_velocity, 3)
+    _vector("uuv.initial_rpy", s.uuv.initial_rpy, 3)
+
+    _vector("target.initial_position", s.target.initial_position, 3)
+    _vector("target.initial_velocity", s.target.initial_velocity, 3)
+    _spd("target.acceleration_covariance", s.target.acceleration_covariance, 3)
+
+    baseline = _vector("sonar.baseline", s.sonar.baseline, 3)
+    if np.linalg.norm(baseline) < 1e-9:
+        _fail("sonar.baseline", "must be non-zero", s.sonar.baseline)
+    eta = _vector("sonar.noise_variances", s.sonar.noise_variances, 2)
+    if np.any(eta <= 0.0):
+        _fail("sonar.noise_variances", "must be > 0", s.sonar.noise_variances)
+    if s.sonar.samples_per_step < 1:
+        _fail("sonar.samples_per_step", "must be ≥ 1", s.sonar.samples_per_step)
+
+    _choice("estimator.type", s.estimator.type, ESTIMATOR_TYPES)
+    _choice("estimator.noise_model", s.estimator.noise_model, NOISE_MODELS)
+    _vector("estimator.initial_estimate", s.estimator.initial_estimate, 6)
+    _spd("estimator.initial_covariance", s.estimator.initial_covariance, 6)
+
+    _choice("attitude.mode", s.attitude.mode, ATTITUDE_MODES)
+    for name in ("rho", "h_amplitude", "h_frequency"):
+        value = getattr(s.attitude, name)
+        if not math.isfinite(value):
+            _fail(f"attitude.{name}", "must be finite", value)
+    if s.attitude.max_angular_rate is not None:
+        _positive("attitude.max_angular_rate", s.attitude.max_angular_rate)
+
+    _choice("tracking.type", s.tracking.type, TRACKING_TYPES)
+    alpha = s.tracking.alpha
+    _positive("tracking.alpha", alpha)
+    low, high = ALPHA_PROVEN_INTERVAL
+    if not low < alpha < high and not s.tracking.allow_unproven_alpha:
+        _fail(
+            "tracking.alpha",
+            f"must be in ({low:.4f}, {high:.4f}) where the paper proves bounded tracking "
+            "(set tracking.allow_unproven_alpha=true to run it anyway)",
+            alpha,
+        )
+    _vector("tracking.desired_relative_position", s.tracking.desired_relative_position, 3)

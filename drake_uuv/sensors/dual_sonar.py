@@ -1,0 +1,161 @@
+"""Two monostatic sonars at ±½ b about the body origin, and the linear measurement Y."""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common import RandomDistribution
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
+
+
+def range_difference_noise(
+    noise_model: str, noise_variances: np.ndarray, mean_squared_ranges: np.ndarray
+) -> tuple[float, float]:
+    """Mean ``m`` and variance ``Γ`` of the noise of ``Y = ½(d1² − d2²)``.
+
+    ``mean_squared_ranges`` holds ``mean_f(d_i²)`` per sonar.
+
+    - ``derived`` (design.md §1): ``v̄ = d̄1 v1 − d̄2 v2 + ½(v1² − v2²)``, so
+      ``m = ½(η1 − η2)`` and ``Γ = η1 d̄1² + η2 d̄2² + ½(η1² + η2²)`` with
+      ``d̄i² ≈ max(mean_f(di²) − ηi, 0)``.
+    - ``paper_printed``: the paper's ``m = η1 + η2`` and
+      ``Γ = 2η1² + 2η2² + 4(mean(d1²) − η1)η1 + 4(mean(d2²) − η2)η2``, kept to measure the
+      difference; it is not consistent with the paper's own ``Y``.
+    """
+    eta1, eta2 = noise_variances
+    if noise_model == "derived":
+        true_squared = np.maximum(mean_squared_ranges - noise_variances, 0.0)
+        m = 0.5 * (eta1 - eta2)
+        gamma = eta1 * true_squared[0] + eta2 * true_squared[1] + 0.5 * (eta1**2 + eta2**2)
+        return m, gamma
+    if noise_model == "paper_printed":
+        m = eta1 + eta2
+        gamma = (
+            2 * eta1**2
+            + 2 * eta2**2
+            + 4 * (mean_squared_ranges[0] - eta1) * eta1
+            + 4 * (mean_squared_ranges[1] - eta2) * eta2
+        )
+        return m, gamma
+    raise ValueError(
+        f"estimator.noise_model: must be derived or paper_printed, got {noise_model!r}"
+    )
+
+
+@dataclass
+class _Measurement:
+    range_samples: np.ndarray  # (2, f)
+    Y: float
+    m: float
+    Gamma: float
+    q_s: np.ndarray  # (3,)
+
+
+class DualSonar(LeafSystem):
+    """Ranges from two sonars to the target, and the paper's linearised measurement.
+
+    Sonar s1 sits at ``p_WU + ½ q_s`` and s2 at ``p_WU − ½ q_s``, with the world baseline
+    ``q_s = R_WB b``. Each returns ``f`` samples ``d_i = |p_WS_i − p_WT| + v``, ``v ~ N(0, η_i)``;
+    the first sample forms ``Y = ½(d1² − d2²) = q_sᵀ q + v̄`` and all ``f`` estimate ``d̄²`` for
+    the noise variance ``Γ`` (:func:`range_difference_noise`).
+
+    .. pydrake_system::
+
+        name: DualSonar
+        input_ports:
+        - uuv_state
+        - R_WB
+        - target_state
+        - range_noise
+        output_ports:
+        - ranges
+        - range_samples
+        - Y
+        - m
+        - Gamma
+        - q_s
+
+    - ``uuv_state`` (6) ``[p_WU, v_WU]``; ``R_WB`` (9, row-major); ``target_state`` (6)
+      ``[p_WT, v_WT]``.
+    - ``range_noise`` (2f, random, standard normal): scaled here by ``√η_i``.
+    - ``ranges`` (2): the first sample of each sonar, ``[d1, d2]`` [m].
+    - ``range_samples`` (2f): all samples, sonar 1's then sonar 2's [m].
+    - ``Y``, ``m``, ``Gamma`` (1 each): the measurement, its noise mean and variance.
+    - ``q_s`` (3): the world baseline ``R_WB b`` (so ``C(k) = [q_sᵀ, 0]``).
+    """
+
+    def __init__(
+        self,
+        baseline_B: np.ndarray,
+        noise_variances: np.ndarray,
+        samples_per_step: int = 1,
+        noise_model: str = "derived",
+    ) -> None:
+        super().__init__()
+        self._b = np.asarray(baseline_B, dtype=float)
+        self._eta = np.asarray(noise_variances, dtype=float)
+        self._sigma = np.sqrt(self._eta)[:, np.newaxis]
+        self._f = int(samples_per_step)
+        self._noise_model = noise_model
+        range_difference_noise(noise_model, self._eta, np.ones(2))  # Fail early on a bad model.
+
+        self._uuv_port = self.DeclareVectorInputPort("uuv_state", 6)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
+        self._target_port = self.DeclareVectorInputPort("target_state", 6)
+        self._noise_port = self.DeclareVectorInputPort(
+            "range_noise", 2 * self._f, RandomDistribution.kGaussian
+        )
+        # One measurement per context, shared by every output port.
+        self._measurement = self.DeclareCacheEntry(
+            "measurement",
+            ValueProducer(
+                allocate=AbstractValue.Make(
+                    _Measurement(np.zeros((2, self._f)), 0, 0, 0, np.zeros(3))
+                ).Clone,
+                calc=self._calc_measurement,
+            ),
+            {self.all_input_ports_ticket()},
+        )
+        depends = {self._measurement.ticket()}
+        self.DeclareVectorOutputPort("ranges", 2, self._calc_ranges, depends)
+        self.DeclareVectorOutputPort("range_samples", 2 * self._f, self._calc_samples, depends)
+        self.DeclareVectorOutputPort("Y", 1, self._calc_Y, depends)
+        self.DeclareVectorOutputPort("m", 1, self._calc_m, depends)
+        self.DeclareVectorOutputPort("Gamma", 1, self._calc_Gamma, depends)
+        self.DeclareVectorOutputPort("q_s", 3, self._calc_q_s, depends)
+
+    def _calc_measurement(self, context: Context, value: AbstractValue) -> None:
+        p_WU = self._uuv_port.Eval(context)[:3]
+        p_WT = self._target_port.Eval(context)[:3]
+        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
+        q_s = R_WB @ self._b
+        q = p_WU - p_WT
+        true_ranges = np.array([np.linalg.norm(q + 0.5 * q_s), np.linalg.norm(q - 0.5 * q_s)])
+        noise = self._noise_port.Eval(context).reshape(2, self._f)
+        samples = true_ranges[:, np.newaxis] + self._sigma * noise
+        d1, d2 = samples[:, 0]
+        m, gamma = range_difference_noise(
+            self._noise_model, self._eta, np.mean(samples * samples, axis=1)
+        )
+        value.set_value(_Measurement(samples, 0.5 * (d1 * d1 - d2 * d2), m, gamma, q_s))
+
+    def _get(self, context: Context) -> _Measurement:
+        return self._measurement.Eval(context)
+
+    def _calc_ranges(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._get(context).range_samples[:, 0])
+
+    def _calc_samples(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._get(context).range_samples.ravel())
+
+    def _calc_Y(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._get(context).Y)
+
+    def _calc_m(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._get(context).m)
+
+    def _calc_Gamma(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._get(context).Gamma)
+
+    def _calc_q_s(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._get(context).q_s)

@@ -1,0 +1,135 @@
+"""Rotation helpers on SO(3) used by the plant, the attitude generator and the sensor.
+
+Plain numpy on purpose: they run inside per-step calcs, where constructing pydrake
+``RotationMatrix``/``AngleAxis`` objects costs more than the arithmetic. The tests check
+every function against Drake's ``RotationMatrix(AngleAxis(...))`` and ``ToAngleAxis()``.
+
+Quaternions are ``[w, x, y, z]`` (Drake's order), unit norm, ``w ≥ 0`` where it matters.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+_SMALL_ANGLE = 1e-9
+
+
+def hat(w: np.ndarray) -> np.ndarray:
+    """Skew-symmetric matrix with ``hat(w) @ v == cross(w, v)``."""
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def exp_so3(rotation_vector: np.ndarray) -> np.ndarray:
+    """Exp: rotation vector (axis × angle) → rotation matrix (Rodrigues)."""
+    theta = math.sqrt(float(rotation_vector @ rotation_vector))
+    K = hat(rotation_vector)
+    if theta < _SMALL_ANGLE:
+        return np.eye(3) + K + 0.5 * (K @ K)
+    return (
+        np.eye(3)
+        + (math.sin(theta) / theta) * K
+        + ((1.0 - math.cos(theta)) / (theta * theta)) * (K @ K)
+    )
+
+
+def quaternion_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion ``[w, x, y, z]`` with ``w ≥ 0`` (Shepperd's method, stable everywhere)."""
+    trace = R[0, 0] + R[1, 1] + R[2, 2]
+    diagonal = (R[0, 0], R[1, 1], R[2, 2])
+    i = int(np.argmax(diagonal))
+    if trace >= diagonal[i]:
+        w = 0.5 * math.sqrt(max(1.0 + trace, 0.0))
+        s = 0.25 / w
+        q = np.array([w, (R[2, 1] - R[1, 2]) * s, (R[0, 2] - R[2, 0]) * s, (R[1, 0] - R[0, 1]) * s])
+    else:
+        j, k = (i + 1) % 3, (i + 2) % 3
+        v = 0.5 * math.sqrt(max(1.0 + R[i, i] - R[j, j] - R[k, k], 0.0))
+        s = 0.25 / v
+        q = np.empty(4)
+        q[0] = (R[k, j] - R[j, k]) * s
+        q[1 + i] = v
+        q[1 + j] = (R[j, i] + R[i, j]) * s
+        q[1 + k] = (R[k, i] + R[i, k]) * s
+    if q[0] < 0.0:
+        q = -q
+    return q / math.sqrt(float(q @ q))
+
+
+def matrix_from_quaternion(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a unit quaternion ``[w, x, y, z]``."""
+    w, x, y, z = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def quaternion_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a ⊗ b`` (the rotation ``R(a) @ R(b)``)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return np.array(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ]
+    )
+
+
+def quaternion_from_rotation_vector(rotation_vector: np.ndarray) -> np.ndarray:
+    """Exp as a unit quaternion."""
+    theta = math.sqrt(float(rotation_vector @ rotation_vector))
+    if theta < _SMALL_ANGLE:
+        q = np.array([1.0, *(0.5 * rotation_vector)])
+        return q / math.sqrt(float(q @ q))
+    s = math.sin(0.5 * theta) / theta
+    return np.array([math.cos(0.5 * theta), *(s * rotation_vector)])
+
+
+def log_so3(R: np.ndarray) -> np.ndarray:
+    """Log: rotation matrix → rotation vector with angle in [0, π]."""
+    q = quaternion_from_matrix(R)
+    v = q[1:]
+    s = math.sqrt(float(v @ v))
+    if s < _SMALL_ANGLE:
+        return 2.0 * v
+    return (2.0 * math.atan2(s, q[0]) / s) * v
+
+
+def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The rotation of least angle taking the direction of ``a`` to the direction of ``b``.
+
+    Axis ``a × b`` normalised, angle ``arccos(aᵀb / (|a||b|))`` (Algorithm 2 of the paper, whose
+    "product of b and ζ" is this cross product). When ``a`` and ``b`` are parallel it is the
+    identity; when antiparallel, a half-turn about any axis perpendicular to ``a``.
+    """
+    a_unit = a / np.linalg.norm(a)
+    b_unit = b / np.linalg.norm(b)
+    axis = np.cross(a_unit, b_unit)
+    sin_angle = math.sqrt(float(axis @ axis))
+    cos_angle = float(a_unit @ b_unit)
+    if sin_angle < _SMALL_ANGLE:
+        if cos_angle > 0.0:
+            return np.eye(3)
+        # Antiparallel: any axis perpendicular to a; take the one from the least-aligned basis axis.
+        basis = np.eye(3)[int(np.argmin(np.abs(a_unit)))]
+        perpendicular = np.cross(a_unit, basis)
+        return exp_so3(math.pi * perpendicular / np.linalg.norm(perpendicular))
+    angle = math.atan2(sin_angle, cos_angle)
+    return exp_so3(axis * (angle / sin_angle))
+
+
+def is_rotation(R: np.ndarray, tolerance: float = 1e-9) -> bool:
+    """True when ``R`` is orthonormal with determinant +1 to within ``tolerance``."""
+    return bool(
+        np.all(np.isfinite(R))
+        and np.max(np.abs(R.T @ R - np.eye(3))) < tolerance
+        and abs(np.linalg.det(R) - 1.0) < tolerance
+    )
