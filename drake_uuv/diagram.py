@@ -11,6 +11,7 @@ from pydrake.systems.primitives import LogVectorOutput, RandomSource, VectorLogS
 from drake_uuv.controllers import AttitudeGenerator, TrackingController
 from drake_uuv.estimators import RangeDifferenceKalmanFilter
 from drake_uuv.plants import TargetRandomWalk, UuvPlant
+from drake_uuv.primitives import NoiseHold
 from drake_uuv.scenario import Scenario
 from drake_uuv.sensors import DualSonar
 
@@ -59,9 +60,10 @@ def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) 
 
     Systems: ``uuv``, ``target``, ``sonar``, ``estimator``, ``attitude_generator``,
     ``tracking_controller``, and one named ``RandomSource`` per random input port
-    (``target_noise``, ``range_noise``, ``rotation_noise``). Loggers are ``log_<name>`` for
-    each entry of :data:`LOGGED_PORTS`, sampled once per step so column k holds the value at
-    step k, before that step's update.
+    (``target_noise``, ``range_noise``, ``rotation_noise``), each followed by a ``NoiseHold``
+    (``<name>_hold``) so that publishes and updates of one step see the same draw. Loggers are
+    ``log_<name>`` for each entry of :data:`LOGGED_PORTS`, sampled once per step so column k
+    holds the value at step k, before that step's update.
 
     Pass a ``builder`` to add systems of your own (a visualiser, say) before building.
     """
@@ -135,7 +137,9 @@ def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) 
         source = builder.AddNamedSystem(
             name, RandomSource(RandomDistribution.kGaussian, port.size(), t)
         )
-        connect(source.get_output_port(), port)
+        hold = builder.AddNamedSystem(f"{name}_hold", NoiseHold(port.size(), t))
+        connect(source.get_output_port(), hold.get_input_port())
+        connect(hold.get_output_port(), port)
 
     loggers = {}
     for name, (system_name, port_name) in LOGGED_PORTS.items():
