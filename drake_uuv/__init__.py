@@ -2,9 +2,10 @@
 
 from drake_uuv.diagram import UuvDiagram, make_uuv_diagram
 from drake_uuv.scenario import Scenario, ScenarioError, load_scenario
-from drake_uuv.simulation import SimulationResult, simulate
+from drake_uuv.simulation import ClosedLoopSimulation, SimulationResult, simulate
 
 __all__ = [
+    "ClosedLoopSimulation",
     "Scenario",
     "ScenarioError",
     "SimulationResult",
