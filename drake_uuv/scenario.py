@@ -110,6 +110,15 @@ class TrackingConfig:
 
 
 @dataclass
+class AnalysisConfig:
+    """Post-run analysis: figures and statistics (no effect on the simulation)."""
+
+    # N: window length [steps] of the persistent-excitation figure, which plots the extreme
+    # eigenvalues of Σ_{m=k}^{k+N−1} q_s(m) q_s(m)ᵀ (paper eq. 10).
+    pe_window: int = 24
+
+
+@dataclass
 class Scenario:
     """One closed-loop run. ``Scenario()`` is the paper's §IV simulation."""
 
@@ -124,6 +133,7 @@ class Scenario:
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
     attitude: AttitudeConfig = field(default_factory=AttitudeConfig)
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    analysis: AnalysisConfig = field(default_factory=AnalysisConfig)
 
 
 # ----------------------------------------------------------------------------- loading
@@ -366,3 +376,6 @@ def validate_scenario(s: Scenario) -> None:
             alpha,
         )
     _vector("tracking.desired_relative_position", s.tracking.desired_relative_position, 3)
+
+    if s.analysis.pe_window < 1:
+        _fail("analysis.pe_window", "must be ≥ 1", s.analysis.pe_window)
