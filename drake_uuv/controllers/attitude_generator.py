@@ -6,7 +6,7 @@ import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
-from drake_uuv.so3 import log_so3, matrix_from_quaternion, minimal_rotation
+from drake_uuv.so3 import log_so3, matrix_from_quaternion, minimal_rotation, norm
 
 
 def zeta(
@@ -96,7 +96,7 @@ class AttitudeGenerator(LeafSystem):
         """``R̄(k)``, or None in ``fixed`` mode."""
         if self._mode == "random":
             quaternion = self._noise_port.Eval(context)
-            return matrix_from_quaternion(quaternion / np.linalg.norm(quaternion))
+            return matrix_from_quaternion(quaternion / norm(quaternion))
         if self._mode == "trajectory":
             k = self.step_index(context)
             target = zeta(k, self._b_norm, self._rho, self._h_amplitude, self._h_frequency)
@@ -111,7 +111,7 @@ class AttitudeGenerator(LeafSystem):
         R_WB = self._attitude_port.Eval(context).reshape(3, 3)
         rate = log_so3(R_desired @ R_WB.T) / self._time_step
         if self._max_rate is not None:
-            norm = float(np.linalg.norm(rate))
-            if norm > self._max_rate:
-                rate *= self._max_rate / norm
+            rate_norm = norm(rate)
+            if rate_norm > self._max_rate:
+                rate *= self._max_rate / rate_norm
         output.set_value(rate)

@@ -6,6 +6,7 @@ from pydrake.systems.framework import BasicVector, Context, DiscreteValues, Leaf
 from drake_uuv.plants.double_integrator import double_integrator
 from drake_uuv.so3 import (
     matrix_from_quaternion,
+    norm,
     quaternion_from_matrix,
     quaternion_from_rotation_vector,
     quaternion_multiply,
@@ -74,7 +75,7 @@ class UuvPlant(LeafSystem):
         )
         next_x = np.empty(10)
         next_x[:6] = self._A @ x[:6] + self._B @ a_W
-        next_x[6:] = next_quaternion / np.linalg.norm(next_quaternion)
+        next_x[6:] = next_quaternion / norm(next_quaternion)
         discrete_state.set_value(self._state_index, next_x)
 
     def _calc_state(self, context: Context, output: BasicVector) -> None:

@@ -7,6 +7,8 @@ from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
 
+from drake_uuv.so3 import norm
+
 
 def range_difference_noise(
     noise_model: str, noise_variances: np.ndarray, mean_squared_ranges: np.ndarray
@@ -130,7 +132,7 @@ class DualSonar(LeafSystem):
         R_WB = self._attitude_port.Eval(context).reshape(3, 3)
         q_s = R_WB @ self._b
         q = p_WU - p_WT
-        true_ranges = np.array([np.linalg.norm(q + 0.5 * q_s), np.linalg.norm(q - 0.5 * q_s)])
+        true_ranges = np.array([norm(q + 0.5 * q_s), norm(q - 0.5 * q_s)])
         noise = self._noise_port.Eval(context).reshape(2, self._f)
         samples = true_ranges[:, np.newaxis] + self._sigma * noise
         d1, d2 = samples[:, 0]
