@@ -1,0 +1,67 @@
+"""The command line: outputs of `drake-uuv run`, and status 2 with one line on bad input."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from drake_uuv.cli import main
+
+
+def test_run_writes_log_metrics_and_figure(tmp_path) -> None:
+    out = tmp_path / "paper"
+    status = main(
+        ["run", "--out", str(out), "--set", "steps=120", "--set", "steady_state_start=60"]
+    )
+    assert status == 0
+    log = np.load(out / "log.npz")
+    assert log["q_hat"].shape == (120, 3) and log["P"].shape == (120, 6, 6)
+    metrics = json.loads((out / "metrics.json").read_text())
+    for key in ("position_rmse", "velocity_rmse", "tracking_rmse", "nees_mean", "steps", "seed",
+                "wall_time_s"):  # fmt: skip
+        assert key in metrics
+    assert metrics["steps"] == 120 and metrics["seed"] == 0
+    assert (out / "errors.png").stat().st_size > 10_000
+
+
+def test_seed_option(tmp_path) -> None:
+    main(["run", "--out", str(tmp_path / "a"), "--seed", "5", "--set", "steps=20",
+          "--set", "steady_state_start=0"])  # fmt: skip
+    assert json.loads((tmp_path / "a" / "metrics.json").read_text())["seed"] == 5
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["run", "--set", "bogus.key=1"], "bogus.key: unknown field 'bogus'"),
+        (["run", "--set", "sonar.baseline=[1, 2]"], "sonar.baseline: must be a list of 3 numbers"),
+        (
+            ["run", "--set", "sonar.noise_variances=[-1, 0.01]"],
+            "sonar.noise_variances: must be > 0",
+        ),
+        (["run", "--set", "tracking.alpha=2"], "tracking.alpha: must be in"),
+        (["run", "--scenario", "missing.yaml"], "scenario: no such file"),
+        (["run", "--seed", "x"], "argument --seed: invalid int value: 'x'"),
+        (["run", "--bogus"], "unrecognized arguments: --bogus"),
+        (["launch"], "invalid choice: 'launch'"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(capsys, args: list[str], message: str) -> None:
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err and "Traceback" not in err
+
+
+def test_console_script_exit_status(tmp_path) -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "drake_uuv.cli", "run", "--set", "attitude.mode=bad"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert result.returncode == 2
+    assert result.stderr.strip() == (
+        "drake-uuv: error: attitude.mode: must be one of fixed, random, trajectory, got 'bad'"
+    )
