@@ -46,6 +46,7 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from drake_uuv.analysis.figures import write_run_figures
     from drake_uuv.analysis.plots import plot_errors
     from drake_uuv.simulation import simulate
 
@@ -54,6 +55,7 @@ def _run(args: argparse.Namespace) -> int:
     result = simulate(scenario)
     result.save(out)
     plot_errors(result, out / "errors.png")
+    write_run_figures(result.log, scenario, out / "figures")
     m = result.metrics
     print(
         f"{scenario.steps} steps in {m['wall_time_s']:.2f} s: position RMSE "
