@@ -1,0 +1,91 @@
+"""Graphviz export of the closed-loop diagram, straight from the diagram that runs."""
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+from drake_uuv.diagram import make_uuv_diagram
+from drake_uuv.io import write_atomic, write_text_atomic
+from drake_uuv.scenario import (
+    ATTITUDE_MODES,
+    ESTIMATOR_TYPES,
+    TRACKING_TYPES,
+    Scenario,
+    load_scenario,
+)
+
+_ID = re.compile(r"(?<=\bs)\d+\b|(?<=cluster)\d+|(?<=digraph _)\d+")
+_EDGE = re.compile(r"^s(\d+):y(\d+):e -> s(\d+):u(\d+):w$")
+
+
+def _sorted_edges(lines: list[str]) -> list[str]:
+    """Sorts each run of edge lines (Drake emits them in pointer-hash order)."""
+    out: list[str] = []
+    run: list[str] = []
+    for line in [*lines, ""]:
+        match = _EDGE.match(line)
+        if match:
+            run.append(line)
+            continue
+        out += sorted(run, key=lambda e: tuple(int(g) for g in _EDGE.match(e).groups()))
+        run = []
+        out.append(line)
+    return out[:-1]
+
+
+def diagram_dot(scenario: Scenario, max_depth: int = 1) -> str:
+    """``GetGraphvizString`` of the scenario's diagram with stable node ids.
+
+    Drake numbers nodes by a per-process system id, so the raw string changes with whatever
+    was built before; renumbering ids in order of first appearance makes the export
+    reproducible (and a committed export checkable). Edges are sorted for the same reason.
+    """
+    raw = make_uuv_diagram(scenario).diagram.GetGraphvizString(max_depth=max_depth)
+    ids: dict[str, str] = {}
+    renumbered = _ID.sub(lambda m: ids.setdefault(m.group(0), str(len(ids))), raw)
+    return "\n".join(_sorted_edges(renumbered.split("\n")))
+
+
+def diagram_variants() -> dict[str, list[str]]:
+    """Every diagram the package can build: one per attitude mode, estimator and tracking law.
+
+    Derived from the scenario's lists of types, so a new estimator or controller type gets
+    its export without anyone editing this function.
+    """
+    variants: dict[str, list[str]] = {"paper": []}
+    for mode in ATTITUDE_MODES:
+        variants.setdefault(f"attitude_{mode}", [f"attitude.mode={mode}"])
+    for estimator in ESTIMATOR_TYPES:
+        variants.setdefault(f"estimator_{estimator}", [f"estimator.type={estimator}"])
+    for law in TRACKING_TYPES:
+        variants.setdefault(f"tracking_{law}", [f"tracking.type={law}"])
+    return variants
+
+
+def render(dot_path: Path, formats: tuple[str, ...] = ("svg", "png")) -> list[Path] | None:
+    """Renders a ``.dot`` with Graphviz's ``dot``; None when ``dot`` is not installed."""
+    dot = shutil.which("dot")
+    if dot is None:
+        return None
+    written = []
+    for fmt in formats:
+        image = subprocess.run(
+            [dot, f"-T{fmt}", str(dot_path)], check=True, capture_output=True
+        ).stdout
+        written.append(write_atomic(dot_path.with_suffix(f".{fmt}"), lambda f, d=image: f.write(d)))
+    return written
+
+
+def export_diagram(scenario: Scenario, out_dir: Path, name: str, max_depth: int = 1) -> list[Path]:
+    """Writes ``name.dot`` (always) and ``.svg``/``.png`` (when Graphviz is present)."""
+    dot_path = write_text_atomic(Path(out_dir) / f"{name}.dot", diagram_dot(scenario, max_depth))
+    return [dot_path, *(render(dot_path) or [])]
+
+
+def export_all_variants(out_dir: Path, max_depth: int = 1) -> list[Path]:
+    """Exports :func:`diagram_variants` into ``out_dir``."""
+    written = []
+    for name, overrides in diagram_variants().items():
+        written += export_diagram(load_scenario("paper", overrides), out_dir, name, max_depth)
+    return written
