@@ -1,0 +1,113 @@
+"""Per-step cost of the Drake diagram against a plain numpy loop of the same math.
+
+The plain loop below calls the same pure functions as the systems (SO(3) helpers, the KF
+update and prediction, the Y-noise model), so the ratio measures what the systems framework
+costs: ports, caching, events and loggers. Targets (issue 2): the diagram within 2× of the
+plain loop, a 500-step paper run under 1 s.
+
+    python benchmarks/bench_loop.py [--runs 5] [--steps 500]
+"""
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from drake_uuv.controllers.attitude_generator import zeta
+from drake_uuv.estimators.kalman_filter import kf_predict, range_difference_update
+from drake_uuv.plants.double_integrator import double_integrator
+from drake_uuv.scenario import Scenario, load_scenario
+from drake_uuv.sensors.dual_sonar import range_difference_noise
+from drake_uuv.simulation import ClosedLoopSimulation
+from drake_uuv.so3 import exp_so3, log_so3, minimal_rotation
+
+
+def plain_loop(scenario: Scenario, seed: int) -> dict[str, np.ndarray]:
+    """The paper's closed loop (Algorithm 2) as one numpy loop; returns the error norms."""
+    rng = np.random.default_rng(seed)
+    t, n = scenario.time_step, scenario.steps
+    A, B = double_integrator(t)
+    W = np.asarray(scenario.target.acceleration_covariance)
+    L, Q = np.linalg.cholesky(W), B @ W @ B.T
+    b = np.asarray(scenario.sonar.baseline)
+    eta = np.asarray(scenario.sonar.noise_variances)
+    alpha, q_star = scenario.tracking.alpha, np.asarray(scenario.tracking.desired_relative_position)
+    a_cfg = scenario.attitude
+    x_uuv = np.zeros(6)
+    x_target = np.concatenate([scenario.target.initial_position, scenario.target.initial_velocity])
+    R = np.eye(3)
+    x_pred = np.asarray(scenario.estimator.initial_estimate, dtype=float)
+    P_pred = np.asarray(scenario.estimator.initial_covariance, dtype=float)
+    position_error = np.empty(n)
+    for k in range(n):
+        # Sensor.
+        q_s = R @ b
+        q = x_uuv[:3] - x_target[:3]
+        d = np.array([math.dist(q, -0.5 * q_s), math.dist(q, 0.5 * q_s)])
+        d = d + np.sqrt(eta) * rng.standard_normal(2)
+        m, gamma = range_difference_noise(scenario.estimator.noise_model, eta, d * d)
+        Y = 0.5 * (d[0] ** 2 - d[1] ** 2)
+        # Filter.
+        x_hat, P = range_difference_update(x_pred, P_pred, Y, m, gamma, q_s)
+        position_error[k] = np.linalg.norm(q - x_hat[:3])
+        # Controllers.
+        R_BW = R.T
+        u1 = -(2 * alpha / t**2) * (R_BW @ x_hat[:3] - q_star) - (2 / t) * (R_BW @ x_hat[3:])
+        R_desired = minimal_rotation(
+            b, zeta(k, np.linalg.norm(b), a_cfg.rho, a_cfg.h_amplitude, a_cfg.h_frequency)
+        )
+        u2 = log_so3(R_desired @ R.T) / t
+        # Plant, target, prediction.
+        a_W = R @ u1
+        x_uuv = A @ x_uuv + B @ a_W
+        R = exp_so3(u2 * t) @ R
+        x_target = A @ x_target + B @ (L @ rng.standard_normal(3))
+        x_pred, P_pred = kf_predict(x_hat, P, a_W, A, B, Q)
+    return {"position_error": position_error}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=5)
+    parser.add_argument("--steps", type=int, default=500)
+    args = parser.parse_args()
+    scenario = load_scenario("paper", [f"steps={args.steps}", "steady_state_start=0"])
+    n = scenario.steps
+
+    plain_loop(scenario, 0)  # warm-up
+    start = time.perf_counter()
+    plain_rmse = []
+    for seed in range(args.runs):
+        e = plain_loop(scenario, seed)["position_error"]
+        plain_rmse.append(np.sqrt(np.mean(e[n // 2 :] ** 2)))
+    plain = (time.perf_counter() - start) / args.runs
+
+    start = time.perf_counter()
+    simulation = ClosedLoopSimulation(scenario)
+    build = time.perf_counter() - start
+    simulation.run(0)  # warm-up
+    start = time.perf_counter()
+    diagram_rmse = []
+    for seed in range(args.runs):
+        r = simulation.run(seed)
+        e = np.linalg.norm(r.log["p_uuv"] - r.log["p_target"] - r.log["q_hat"], axis=1)
+        diagram_rmse.append(np.sqrt(np.mean(e[n // 2 :] ** 2)))
+    diagram = (time.perf_counter() - start) / args.runs
+
+    print(f"paper scenario, {n} steps, mean of {args.runs} runs")
+    print(f"  plain numpy loop : {plain * 1e6 / n:7.1f} us/step  {plain:6.3f} s/run")
+    print(
+        f"  Drake diagram    : {diagram * 1e6 / n:7.1f} us/step  {diagram:6.3f} s/run"
+        f"  (+ {build * 1e3:.0f} ms to build once)"
+    )
+    print(f"  ratio diagram/plain: {diagram / plain:.2f}x   (target <= 2x)")
+    print(f"  500-step run under 1 s: {'yes' if diagram * 500 / n < 1.0 else 'no'}")
+    print(
+        f"  same math, independent noise streams: position RMSE (k >= {n // 2}) plain "
+        f"{np.mean(plain_rmse):.3f} m, diagram {np.mean(diagram_rmse):.3f} m"
+    )
+
+
+if __name__ == "__main__":
+    main()
