@@ -1,0 +1,122 @@
+"""Measurement and motion model of the relative state, as pure numpy (no Drake).
+
+Conventions (design.md §1, fixed for every estimator in this package):
+
+* Relative state ``x = [q, ϑ] ∈ R⁶``, ``q = p_uuv − p_target`` and ``ϑ = v_uuv − v_target``,
+  both in the world frame.
+* ``x(k+1) = A x(k) + B (a_W(k) − ū(k))`` with ``A = [[I, tI], [0, I]]``,
+  ``B = [[t²/2 I], [t I]]``, ``a_W = R u1`` the known world acceleration applied to the UUV
+  and ``ū ~ N(0, W)`` the target's acceleration. The process noise covariance is
+  ``Q = B W Bᵀ`` (rank 3, singular).
+* World sonar baseline ``q_s = R b``; sonar s1 sits at ``p_uuv + ½ q_s``, s2 at
+  ``p_uuv − ½ q_s``. True ranges ``d1 = |q + ½ q_s|``, ``d2 = |q − ½ q_s|``.
+* Each sonar returns ``f`` samples ``d_i^j = d_i + v_i^j``, ``v ~ N(0, η_i)`` (``η`` is a
+  variance). The per-sonar sample mean is sufficient, with variance ``η_i / f``.
+* The paper's linear measurement ``Y = ½(d1² − d2²) = q_sᵀ q + v̄``, ``C = [q_sᵀ, 0]``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Ranges below this are clamped when a unit vector is formed (a sonar on the target).
+MIN_RANGE = 1e-9
+
+
+def relative_model_matrices(time_step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``(A, B)`` of the constant-velocity relative model for period ``time_step``.
+
+    ``A = [[I, tI], [0, I]]`` (6×6) and ``B = [[t²/2 I], [t I]]`` (6×3).
+    """
+    t = float(time_step)
+    if not t > 0.0:
+        raise ValueError(f"time_step must be > 0, got {time_step}")
+    eye = np.eye(3)
+    A = np.block([[eye, t * eye], [np.zeros((3, 3)), eye]])
+    B = np.vstack([0.5 * t * t * eye, t * eye])
+    return A, B
+
+
+def process_noise_covariance(W: np.ndarray, time_step: float) -> np.ndarray:
+    """Return ``Q = B W Bᵀ`` (6×6, rank 3) for the target acceleration covariance ``W`` (3×3)."""
+    _, B = relative_model_matrices(time_step)
+    W = np.asarray(W, dtype=float).reshape(3, 3)
+    Q = B @ W @ B.T
+    return 0.5 * (Q + Q.T)
+
+
+def range_measurement(x: np.ndarray, q_s: np.ndarray) -> np.ndarray:
+    """Return the true ranges ``[d1, d2] = [|q + ½ q_s|, |q − ½ q_s|]`` (shape ``(2,)``).
+
+    ``x`` is the relative state (6,) (only ``q = x[:3]`` is used), ``q_s`` the world baseline (3,).
+    """
+    q = np.asarray(x, dtype=float)[:3]
+    half = 0.5 * np.asarray(q_s, dtype=float).reshape(3)
+    return np.array([np.linalg.norm(q + half), np.linalg.norm(q - half)])
+
+
+def range_jacobian(x: np.ndarray, q_s: np.ndarray) -> np.ndarray:
+    """Return ``H = ∂[d1, d2]/∂x`` (shape ``(2, 6)``).
+
+    Row i is ``[u_iᵀ, 0₁ₓ₃]`` with ``u_i`` the unit vector from sonar i to the target's
+    negated position, i.e. ``u1 = (q + ½ q_s)/d1`` and ``u2 = (q − ½ q_s)/d2``; the ranges do
+    not depend on the relative velocity. A range below :data:`MIN_RANGE` is clamped (the
+    direction is then meaningless, but the result stays finite).
+    """
+    q = np.asarray(x, dtype=float)[:3]
+    half = 0.5 * np.asarray(q_s, dtype=float).reshape(3)
+    r1 = q + half
+    r2 = q - half
+    H = np.zeros((2, 6))
+    H[0, :3] = r1 / max(float(np.linalg.norm(r1)), MIN_RANGE)
+    H[1, :3] = r2 / max(float(np.linalg.norm(r2)), MIN_RANGE)
+    return H
+
+
+def mean_ranges(range_samples: np.ndarray, samples_per_step: int) -> np.ndarray:
+    """Per-sonar sample mean of ``range_samples`` (length ``2f``: the f samples of s1, then s2).
+
+    This is the sufficient statistic of the raw ranges; its noise covariance is
+    :func:`range_noise_covariance`.
+    """
+    f = int(samples_per_step)
+    samples = np.asarray(range_samples, dtype=float).reshape(2, f)
+    return samples.mean(axis=1)
+
+
+def range_noise_covariance(eta: np.ndarray, samples_per_step: int) -> np.ndarray:
+    """``R = diag(η1/f, η2/f)``: covariance of the per-sonar mean of ``f`` samples."""
+    eta = np.asarray(eta, dtype=float).reshape(2)
+    return np.diag(eta / float(samples_per_step))
+
+
+def range_difference_measurement(
+    ranges: np.ndarray, variances: np.ndarray, squared_ranges: np.ndarray | None = None
+) -> tuple[float, float, float]:
+    """The paper's linear measurement from two ranges: ``(Y, m, Γ)`` with the derived moments.
+
+    ``Y = ½(z1² − z2²)`` where ``z_i = d_i + w_i``, ``w_i ~ N(0, σ_i²)`` with
+    ``σ² = variances``. Then ``Y = q_sᵀ q + v̄`` with ``v̄ = d1 w1 − d2 w2 + ½(w1² − w2²)``,
+    mean ``m = ½(σ1² − σ2²)`` and variance ``Γ = σ1² d1² + σ2² d2² + ½(σ1⁴ + σ2⁴)``
+    (design.md §1, the ``derived`` noise model). The unknown ``d_i²`` are estimated by
+    ``max(s_i − σ_i², 0)`` where ``s_i`` is ``squared_ranges[i]`` (e.g. the mean over the
+    f samples of ``d_i²``) or, if not given, ``z_i²``.
+
+    The paper's KF uses the first sample of each sonar with ``σ² = η``; a raw-range filter
+    that initialises from the linear KF uses the sample means with ``σ² = η/f``.
+    """
+    z = np.asarray(ranges, dtype=float).reshape(2)
+    s2 = np.asarray(variances, dtype=float).reshape(2)
+    sq = z * z if squared_ranges is None else np.asarray(squared_ranges, dtype=float).reshape(2)
+    d_sq = np.maximum(sq - s2, 0.0)
+    Y = 0.5 * (z[0] ** 2 - z[1] ** 2)
+    m = 0.5 * (s2[0] - s2[1])
+    Gamma = s2[0] * d_sq[0] + s2[1] * d_sq[1] + 0.5 * (s2[0] ** 2 + s2[1] ** 2)
+    return float(Y), float(m), float(Gamma)
+
+
+def linear_measurement_matrix(q_s: np.ndarray) -> np.ndarray:
+    """``C = [q_sᵀ, 0₁ₓ₃]`` (shape ``(1, 6)``) of the paper's measurement ``Y = q_sᵀ q + v̄``."""
+    C = np.zeros((1, 6))
+    C[0, :3] = np.asarray(q_s, dtype=float).reshape(3)
+    return C
