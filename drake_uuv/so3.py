@@ -81,30 +81,6 @@ def matrix_from_quaternion(q: np.ndarray) -> np.ndarray:
     )
 
 
-def quaternion_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product ``a ⊗ b`` (the rotation ``R(a) @ R(b)``)."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return np.array(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ]
-    )
-
-
-def quaternion_from_rotation_vector(rotation_vector: np.ndarray) -> np.ndarray:
-    """Exp as a unit quaternion."""
-    theta = math.sqrt(float(rotation_vector @ rotation_vector))
-    if theta < _SMALL_ANGLE:
-        q = np.array([1.0, *(0.5 * rotation_vector)])
-        return q / math.sqrt(float(q @ q))
-    s = math.sin(0.5 * theta) / theta
-    return np.array([math.cos(0.5 * theta), *(s * rotation_vector)])
-
-
 def log_so3(R: np.ndarray) -> np.ndarray:
     """Log: rotation matrix → rotation vector with angle in [0, π]."""
     q = quaternion_from_matrix(R)

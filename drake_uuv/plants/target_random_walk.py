@@ -2,7 +2,7 @@
 
 import numpy as np
 from pydrake.common import RandomDistribution
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from drake_uuv.plants.double_integrator import double_integrator
 
@@ -43,14 +43,9 @@ class TargetRandomWalk(LeafSystem):
             np.concatenate([initial_position, initial_velocity])
         )
         self.DeclarePeriodicDiscreteUpdateEvent(time_step, 0.0, self._update)
-        self.DeclareVectorOutputPort(
-            "state", 6, self._calc_state, prerequisites_of_calc={self.xd_ticket()}
-        )
+        self.DeclareStateOutputPort("state", self._state_index)
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         x = context.get_discrete_state(self._state_index).get_value()
         acceleration = self._L @ self._noise_port.Eval(context)
         discrete_state.set_value(self._state_index, self._A @ x + self._B @ acceleration)
-
-    def _calc_state(self, context: Context, output: BasicVector) -> None:
-        output.set_value(context.get_discrete_state(self._state_index).get_value())

@@ -1,16 +1,10 @@
 """The UUV of the paper: a discrete double integrator with a rotating attitude, eq. (1)–(2)."""
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from drake_uuv.plants.double_integrator import double_integrator
-from drake_uuv.so3 import (
-    matrix_from_quaternion,
-    norm,
-    quaternion_from_matrix,
-    quaternion_from_rotation_vector,
-    quaternion_multiply,
-)
+from drake_uuv.so3 import exp_so3
 
 
 class UuvPlant(LeafSystem):
@@ -20,8 +14,10 @@ class UuvPlant(LeafSystem):
     acts as a world-frame angular velocity (a body rate would be ``Rᵀ u2``); we keep the
     paper's equation and name the port ``w_W`` accordingly.
 
-    The attitude is held as a unit quaternion renormalised every step, so ``R_WB`` stays
-    orthonormal to machine precision over any run length.
+    The attitude is held as the rotation matrix itself and re-orthonormalised every step with
+    one Newton step of the polar decomposition, ``R ← R (3I − RᵀR) / 2``, which squares the
+    orthogonality error each step: ``R_WB`` stays orthonormal to machine precision over any
+    run length. Both outputs are Drake state output ports (no Python call per step).
 
     .. pydrake_system::
 
@@ -51,36 +47,20 @@ class UuvPlant(LeafSystem):
         self._A, self._B = double_integrator(self._time_step)
         self._u1_port = self.DeclareVectorInputPort("u1_B", 3)
         self._w_port = self.DeclareVectorInputPort("w_W", 3)
-        initial = np.concatenate(
-            [initial_position, initial_velocity, quaternion_from_matrix(np.asarray(initial_R_WB))]
+        # State groups: [p_WU, v_WU] (6) and R_WB row-major (9).
+        self._motion_index = self.DeclareDiscreteState(
+            np.concatenate([initial_position, initial_velocity])
         )
-        # State: [p (3), v (3), quaternion of R_WB (4)].
-        self._state_index = self.DeclareDiscreteState(initial)
+        self._attitude_index = self.DeclareDiscreteState(np.asarray(initial_R_WB).ravel())
         self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
-        self.DeclareVectorOutputPort(
-            "state", 6, self._calc_state, prerequisites_of_calc={self.xd_ticket()}
-        )
-        self.DeclareVectorOutputPort(
-            "R_WB", 9, self._calc_attitude, prerequisites_of_calc={self.xd_ticket()}
-        )
+        self.DeclareStateOutputPort("state", self._motion_index)
+        self.DeclareStateOutputPort("R_WB", self._attitude_index)
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        x = context.get_discrete_state(self._state_index).get_value()
-        quaternion = x[6:]
-        R = matrix_from_quaternion(quaternion)
+        x = context.get_discrete_state(self._motion_index).get_value()
+        R = context.get_discrete_state(self._attitude_index).get_value().reshape(3, 3)
         a_W = R @ self._u1_port.Eval(context)
-        next_quaternion = quaternion_multiply(
-            quaternion_from_rotation_vector(self._w_port.Eval(context) * self._time_step),
-            quaternion,
-        )
-        next_x = np.empty(10)
-        next_x[:6] = self._A @ x[:6] + self._B @ a_W
-        next_x[6:] = next_quaternion / norm(next_quaternion)
-        discrete_state.set_value(self._state_index, next_x)
-
-    def _calc_state(self, context: Context, output: BasicVector) -> None:
-        output.set_value(context.get_discrete_state(self._state_index).get_value()[:6])
-
-    def _calc_attitude(self, context: Context, output: BasicVector) -> None:
-        quaternion = context.get_discrete_state(self._state_index).get_value()[6:]
-        output.set_value(matrix_from_quaternion(quaternion).ravel())
+        R_next = exp_so3(self._w_port.Eval(context) * self._time_step) @ R
+        R_next = R_next @ (1.5 * np.eye(3) - 0.5 * (R_next.T @ R_next))
+        discrete_state.set_value(self._motion_index, self._A @ x + self._B @ a_W)
+        discrete_state.set_value(self._attitude_index, R_next.ravel())
