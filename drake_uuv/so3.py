@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 _SMALL_ANGLE = 1e-9
+_I3 = np.eye(3)
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -38,9 +39,9 @@ def exp_so3(rotation_vector: np.ndarray) -> np.ndarray:
     theta = math.sqrt(float(rotation_vector @ rotation_vector))
     K = hat(rotation_vector)
     if theta < _SMALL_ANGLE:
-        return np.eye(3) + K + 0.5 * (K @ K)
+        return _I3 + K + 0.5 * (K @ K)
     return (
-        np.eye(3)
+        _I3
         + (math.sin(theta) / theta) * K
         + ((1.0 - math.cos(theta)) / (theta * theta)) * (K @ K)
     )

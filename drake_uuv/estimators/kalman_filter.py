@@ -14,6 +14,8 @@ from pydrake.systems.framework import (
 
 from drake_uuv.plants.double_integrator import double_integrator
 
+_I6 = np.eye(6)
+
 
 def kf_predict(
     x: np.ndarray, P: np.ndarray, a_W: np.ndarray, A: np.ndarray, B: np.ndarray, Q: np.ndarray
@@ -35,7 +37,7 @@ def range_difference_update(
     S = float(q_s @ PCt[:3]) + Gamma
     K = PCt / S
     innovation = Y - float(q_s @ x_pred[:3]) - m
-    I_KC = np.eye(6)
+    I_KC = _I6.copy()
     I_KC[:, :3] -= np.outer(K, q_s)
     P = I_KC @ P_pred @ I_KC.T + Gamma * np.outer(K, K)
     return x_pred + K * innovation, P

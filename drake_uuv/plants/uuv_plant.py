@@ -61,6 +61,6 @@ class UuvPlant(LeafSystem):
         R = context.get_discrete_state(self._attitude_index).get_value().reshape(3, 3)
         a_W = R @ self._u1_port.Eval(context)
         R_next = exp_so3(self._w_port.Eval(context) * self._time_step) @ R
-        R_next = R_next @ (1.5 * np.eye(3) - 0.5 * (R_next.T @ R_next))
+        R_next = 1.5 * R_next - 0.5 * (R_next @ (R_next.T @ R_next))
         discrete_state.set_value(self._motion_index, self._A @ x + self._B @ a_W)
         discrete_state.set_value(self._attitude_index, R_next.ravel())
