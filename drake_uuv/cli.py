@@ -10,6 +10,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from drake_uuv import montecarlo
 from drake_uuv.scenario import Scenario, ScenarioError, load_scenario
 
 EXIT_BAD_INPUT = 2
@@ -106,7 +107,11 @@ def _add_diagram(subparsers: argparse._SubParsersAction) -> None:
 
 
 # Each entry adds one subcommand (parser and handler) to the command line.
-SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [_add_run, _add_diagram]
+SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
+    _add_run,
+    _add_diagram,
+    montecarlo.add_subcommand,
+]
 
 
 def make_parser() -> argparse.ArgumentParser:
