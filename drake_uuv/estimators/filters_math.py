@@ -140,7 +140,9 @@ def iekf_update(
     (the Gauss–Newton step). A step that does not lower ``c`` is halved up to ``max_halvings``
     times; the iteration stops after ``max_iterations`` or when the step is below
     ``tolerance`` (in the ``P⁻¹`` norm). The covariance is the Joseph form with the gain and
-    Jacobian at the final iterate. With one iteration and a full step it is :func:`ekf_update`.
+    Jacobian at the final iterate. With one iteration and a full step its estimate and NIS
+    are those of :func:`ekf_update` (the covariance then uses the Jacobian at the updated
+    estimate rather than at the prediction).
     Returns ``(x, P, nis)``; ``nis`` uses the prior innovation, as in :func:`ekf_update`.
     """
     z = np.asarray(z, dtype=float).reshape(2)
