@@ -10,7 +10,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from drake_uuv import montecarlo
+from drake_uuv import compare, montecarlo
 from drake_uuv.scenario import Scenario, ScenarioError, load_scenario
 
 EXIT_BAD_INPUT = 2
@@ -111,6 +111,7 @@ SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_run,
     _add_diagram,
     montecarlo.add_subcommand,
+    compare.add_subcommand,
 ]
 
 
