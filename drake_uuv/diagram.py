@@ -8,7 +8,7 @@ from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import LogVectorOutput, RandomSource, VectorLogSink
 
-from drake_uuv.controllers import AttitudeGenerator, TrackingController
+from drake_uuv.controllers import AttitudeGenerator, LqrTrackingController, TrackingController
 from drake_uuv.estimators import RangeDifferenceKalmanFilter
 from drake_uuv.plants import TargetRandomWalk, UuvPlant
 from drake_uuv.primitives import NoiseHold
@@ -53,6 +53,25 @@ def make_estimator(scenario: Scenario) -> LeafSystem:
             np.asarray(e.initial_covariance),
         )
     raise ValueError(f"estimator.type: unknown estimator, got {e.type!r}")
+
+
+def make_tracking_controller(scenario: Scenario) -> LeafSystem:
+    """The tracking law named by ``tracking.type`` (``lqr`` also reads the attitude plan)."""
+    c = scenario.tracking
+    q_star = np.asarray(c.desired_relative_position)
+    if c.type == "paper":
+        return TrackingController(scenario.time_step, c.alpha, q_star, c.max_acceleration)
+    if c.type == "lqr":
+        return LqrTrackingController(
+            scenario.time_step,
+            q_star,
+            c.lqr_position_weight,
+            c.lqr_velocity_weight,
+            c.lqr_input_weight,
+            c.max_acceleration,
+            c.lqr_feedforward,
+        )
+    raise ValueError(f"tracking.type: unknown tracking law, got {c.type!r}")
 
 
 def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) -> UuvDiagram:
@@ -100,9 +119,7 @@ def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) 
             scenario.attitude.h_frequency,
             scenario.attitude.max_angular_rate,
         ),
-        "tracking_controller": TrackingController(
-            t, scenario.tracking.alpha, np.asarray(scenario.tracking.desired_relative_position)
-        ),
+        "tracking_controller": make_tracking_controller(scenario),
     }
     for name, system in systems.items():
         builder.AddNamedSystem(name, system)
@@ -122,6 +139,8 @@ def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) 
     connect(controller.GetOutputPort("a_W"), estimator.GetInputPort("a_W"))
     connect(estimator.GetOutputPort("x_hat"), controller.GetInputPort("x_hat"))
     connect(uuv.GetOutputPort("R_WB"), controller.GetInputPort("R_WB"))
+    if controller.HasInputPort("R_WB_plan"):
+        connect(attitude.GetOutputPort("R_WB_plan"), controller.GetInputPort("R_WB_plan"))
     connect(uuv.GetOutputPort("R_WB"), attitude.GetInputPort("R_WB"))
     connect(controller.GetOutputPort("u1_B"), uuv.GetInputPort("u1_B"))
     connect(attitude.GetOutputPort("w_W"), uuv.GetInputPort("w_W"))

@@ -2,6 +2,7 @@
 
 import numpy as np
 
+from drake_uuv.controllers.lqr_tracking_controller import closed_loop_eigenvalues
 from drake_uuv.scenario import Scenario
 
 
@@ -31,7 +32,19 @@ def rms_norm(values: np.ndarray) -> float:
 
 
 def run_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, float]:
-    """Steady-state metrics over k ≥ ``scenario.steady_state_start``."""
+    """Steady-state metrics over k ≥ ``scenario.steady_state_start``.
+
+    - ``position_rmse``, ``velocity_rmse``: RMS of |true − filtered| relative position [m] and
+      velocity [m/s]; ``tracking_rmse``: RMS of |q − R q*| [m]; ``nees_mean``: mean NEES (≈ 6
+      for a consistent filter); ``final_position_error``: |position error| at the last step.
+    - ``relative_speed_mean``/``_peak``: mean and largest |ϑ| = |v − v̄|, the true relative
+      speed [m/s]; ``acceleration_mean``/``_peak``: mean and largest |R u1|, the commanded
+      (after any limit, i.e. applied) world acceleration [m/s²]. These measure what the
+      tracking law asks of the vehicle.
+    - ``tracking_spectral_radius``: the largest |eigenvalue| of the tracking law's closed loop
+      ``A − B K`` on the relative double integrator (< 1: the error dynamics are stable;
+      the paper's law has 1, its undamped velocity mode). The same for every run of a scenario.
+    """
     e = errors(log, scenario)
     window = slice(scenario.steady_state_start, None)
     speed = np.linalg.norm(e["relative_velocity"][window], axis=1)
@@ -46,4 +59,5 @@ def run_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, flo
         "relative_speed_peak": float(np.max(speed)),
         "acceleration_mean": float(np.mean(acceleration)),
         "acceleration_peak": float(np.max(acceleration)),
+        "tracking_spectral_radius": float(np.max(np.abs(closed_loop_eigenvalues(scenario)))),
     }

@@ -27,7 +27,7 @@ from pydrake.common.yaml import yaml_load_typed
 NOISE_MODELS = ("derived", "paper_printed")
 ATTITUDE_MODES = ("fixed", "random", "trajectory")
 ESTIMATOR_TYPES = ("kf",)
-TRACKING_TYPES = ("paper",)
+TRACKING_TYPES = ("paper", "lqr")
 ALPHA_PROVEN_INTERVAL = (1.0 - 1.0 / math.sqrt(2.0), 1.0 + 1.0 / math.sqrt(2.0))
 
 
@@ -102,11 +102,22 @@ class AttitudeConfig:
 class TrackingConfig:
     """The tracking controller holding q = R q* (q* in the body frame)."""
 
+    # "paper" (§III-B, gain α) or "lqr" (LQR gain plus the attitude plan's feed-forward).
     type: str = "paper"
     alpha: float = 1.2
     desired_relative_position: list[float] = field(default_factory=lambda: [-2.0, -2.0, 0.0])
     # The paper proves bounded tracking only for α in (1 − 1/√2, 1 + 1/√2).
     allow_unproven_alpha: bool = False
+    # lqr: Q = diag(position I, velocity I) on the relative-state error, R = input I on the
+    # world acceleration (only the ratios matter; see lqr_tracking_controller.py).
+    lqr_position_weight: float = 1.0
+    lqr_velocity_weight: float = 0.25
+    lqr_input_weight: float = 0.1
+    # lqr: feed the attitude plan's reference velocity and acceleration forward (false: regulate
+    # to the current point R q* only, which lags the turning reference).
+    lqr_feedforward: bool = True
+    # Largest |world acceleration| [m/s²], applied to either law; None means unlimited.
+    max_acceleration: float | None = None
 
 
 @dataclass
@@ -376,6 +387,11 @@ def validate_scenario(s: Scenario) -> None:
             alpha,
         )
     _vector("tracking.desired_relative_position", s.tracking.desired_relative_position, 3)
+    _positive("tracking.lqr_position_weight", s.tracking.lqr_position_weight)
+    _positive("tracking.lqr_velocity_weight", s.tracking.lqr_velocity_weight, strict=False)
+    _positive("tracking.lqr_input_weight", s.tracking.lqr_input_weight)
+    if s.tracking.max_acceleration is not None:
+        _positive("tracking.max_acceleration", s.tracking.max_acceleration)
 
     if s.analysis.pe_window < 1:
         _fail("analysis.pe_window", "must be ≥ 1", s.analysis.pe_window)

@@ -6,7 +6,7 @@ import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
-from drake_uuv.so3 import log_so3, matrix_from_quaternion, minimal_rotation, norm
+from drake_uuv.so3 import exp_so3, log_so3, matrix_from_quaternion, minimal_rotation, norm
 
 
 def zeta(
@@ -41,6 +41,13 @@ class AttitudeGenerator(LeafSystem):
 
     ``u2`` is a world-frame rate, as the plant (paper eq. 2) left-multiplies by ``Exp(u2 t)``.
 
+    The generator also publishes its *plan*, the attitudes ``R(k+1)`` and ``R(k+2)`` it will
+    produce, for a tracking controller that feeds the turning reference ``R q*`` forward.
+    ``R(k+1) = Exp(u2(k) t) R(k)`` is known in every mode. ``R(k+2)`` is known for Algorithm 2
+    (a deterministic trajectory: the generator rolls its own law one step further, including
+    any rate limit) and for ``fixed``; Algorithm 1 draws ``R̄(k+1)`` only at step k+1, so its
+    plan holds ``R(k+2) = R(k+1)``.
+
     .. pydrake_system::
 
         name: AttitudeGenerator
@@ -49,10 +56,12 @@ class AttitudeGenerator(LeafSystem):
         - rotation_noise
         output_ports:
         - w_W
+        - R_WB_plan
 
     - ``R_WB`` (9, row-major): the current attitude.
     - ``rotation_noise`` (4, random, standard normal): only in ``random`` mode.
     - ``w_W`` (3): the angular velocity command ``u2`` [rad/s].
+    - ``R_WB_plan`` (18): the planned ``R(k+1)`` and ``R(k+2)``, each row-major (see above).
     """
 
     def __init__(
@@ -83,6 +92,7 @@ class AttitudeGenerator(LeafSystem):
             else None
         )
         self.DeclareVectorOutputPort("w_W", 3, self._calc_rate)
+        self.DeclareVectorOutputPort("R_WB_plan", 18, self._calc_plan)
 
     @property
     def mode(self) -> str:
@@ -98,20 +108,43 @@ class AttitudeGenerator(LeafSystem):
             quaternion = self._noise_port.Eval(context)
             return matrix_from_quaternion(quaternion / norm(quaternion))
         if self._mode == "trajectory":
-            k = self.step_index(context)
-            target = zeta(k, self._b_norm, self._rho, self._h_amplitude, self._h_frequency)
-            return minimal_rotation(self._b, target)
+            return self._trajectory_attitude(self.step_index(context))
         return None
+
+    def _trajectory_attitude(self, k: int) -> np.ndarray:
+        """Algorithm 2's ``R̄(k)``: the minimal rotation taking ``b`` along ``ζ(k)``."""
+        target = zeta(k, self._b_norm, self._rho, self._h_amplitude, self._h_frequency)
+        return minimal_rotation(self._b, target)
+
+    def _command(self, R_desired: np.ndarray, R_WB: np.ndarray) -> np.ndarray:
+        """``u2 = Log(R̄ Rᵀ) / t``, scaled down to ``max_angular_rate`` if that is set."""
+        rate = log_so3(R_desired @ R_WB.T) / self._time_step
+        if self._max_rate is not None:
+            rate_norm = norm(rate)
+            if rate_norm > self._max_rate:
+                rate *= self._max_rate / rate_norm
+        return rate
 
     def _calc_rate(self, context: Context, output: BasicVector) -> None:
         R_desired = self.desired_attitude(context)
         if R_desired is None:
             output.SetZero()
             return
+        output.set_value(self._command(R_desired, self._attitude_port.Eval(context).reshape(3, 3)))
+
+    def planned_attitudes(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        """``(R(k+1), R(k+2))`` as this generator will command them (see the class notes)."""
         R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        rate = log_so3(R_desired @ R_WB.T) / self._time_step
-        if self._max_rate is not None:
-            rate_norm = norm(rate)
-            if rate_norm > self._max_rate:
-                rate *= self._max_rate / rate_norm
-        output.set_value(rate)
+        R_desired = self.desired_attitude(context)
+        if R_desired is None:
+            return R_WB, R_WB
+        t = self._time_step
+        R_next = exp_so3(self._command(R_desired, R_WB) * t) @ R_WB
+        if self._mode != "trajectory":
+            return R_next, R_next
+        R_desired_next = self._trajectory_attitude(self.step_index(context) + 1)
+        return R_next, exp_so3(self._command(R_desired_next, R_next) * t) @ R_next
+
+    def _calc_plan(self, context: Context, output: BasicVector) -> None:
+        R_next, R_after = self.planned_attitudes(context)
+        output.set_value(np.concatenate([R_next.ravel(), R_after.ravel()]))

@@ -25,16 +25,24 @@ class TrackingController(LeafSystem):
     - ``R_WB`` (9, row-major): the current attitude.
     - ``u1_B`` (3): the body-frame acceleration command [m/s²].
     - ``a_W`` (3): the same acceleration in the world frame, ``R u1`` (the filter's input).
+
+    With ``max_acceleration`` the command is scaled down to that norm (direction kept); the law
+    is static, so there is nothing to wind up.
     """
 
     def __init__(
-        self, time_step: float, alpha: float, desired_relative_position_B: np.ndarray
+        self,
+        time_step: float,
+        alpha: float,
+        desired_relative_position_B: np.ndarray,
+        max_acceleration: float | None = None,
     ) -> None:
         super().__init__()
         t = float(time_step)
         self._position_gain = 2.0 * alpha / (t * t)
         self._velocity_gain = 2.0 / t
         self._q_star = np.asarray(desired_relative_position_B, dtype=float)
+        self._max_acceleration = max_acceleration
         self._x_hat_port = self.DeclareVectorInputPort("x_hat", 6)
         self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
         self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1)
@@ -43,9 +51,14 @@ class TrackingController(LeafSystem):
     def _u1(self, context: Context) -> np.ndarray:
         x_hat = self._x_hat_port.Eval(context)
         R_BW = self._attitude_port.Eval(context).reshape(3, 3).T
-        return -self._position_gain * (R_BW @ x_hat[:3] - self._q_star) - self._velocity_gain * (
+        u1 = -self._position_gain * (R_BW @ x_hat[:3] - self._q_star) - self._velocity_gain * (
             R_BW @ x_hat[3:]
         )
+        if self._max_acceleration is not None:  # |R u1| = |u1|
+            u1_norm = float(np.sqrt(u1 @ u1))
+            if u1_norm > self._max_acceleration:
+                u1 *= self._max_acceleration / u1_norm
+        return u1
 
     def _calc_u1(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._u1(context))

@@ -1,0 +1,188 @@
+"""An LQR tracking law with reference feed-forward: relative-position holding a vehicle can fly.
+
+The paper's law (§III-B) places the closed-loop eigenvalues of the relative double integrator
+at ``1 − α`` and ``−1``: the position error contracts, but the relative velocity is never
+damped, so the vehicle alternates between huge velocities every step. This law instead takes
+its gain from a discrete LQR on the same model and follows the *moving* reference
+``r(k) = R(k) q*`` with a feed-forward built from the attitude generator's plan.
+
+Reference feed-forward (derivation)
+-----------------------------------
+The relative state ``Υ = [q, ϑ]`` obeys ``Υ(k+1) = A Υ(k) + B (a(k) − ū(k))`` with the world
+acceleration ``a = R u1``. The plan gives ``r0 = R(k) q*``, ``r1 = R(k+1) q*`` and
+``r2 = R(k+2) q*``. The reference state and acceleration are the unique ones that start at ``r0``
+and pass through ``r1`` and ``r2`` under one constant acceleration (the discrete analogue of a
+second-order fit)::
+
+    ν(k)    = (−3 r0 + 4 r1 − r2) / (2t)
+    a_ff(k) = (r0 − 2 r1 + r2) / t²
+    a(k)    = a_ff(k) − K (Υ̂(k) − [r0; ν(k)])
+
+Then ``A [r0; ν] + B a_ff = [r1; (r2 − r0)/(2t)]``: the position part lands *exactly* on the
+next reference point, and the velocity part differs from the next step's ``ν(k+1)`` by
+``Δ³r(k) / (2t)`` (the third forward difference of the reference positions). With perfect state
+knowledge the error ``ε = Υ − [r; ν]`` obeys ``ε(k+1) = (A − BK) ε(k) + [0; Δ³r(k)/(2t)] − B ū``,
+so the tracking error converges to zero for any reference whose positions are quadratic in k
+and to ``O(t² |d³r/dt³|)`` for a smooth one.
+
+No bounded law can do better in general: exact position tracking forces the velocity to obey
+``ϑ(k) + ϑ(k+1) = 2 (r(k+1) − r(k)) / t``, whose solutions carry a ``(−1)^k`` mode that the
+Nyquist-frequency content of the sampled reference drives *resonantly*. The paper's Algorithm 2
+plan has such content (its minimal rotation whips through up to 1.5 rad per step), so exact
+tracking of it would need an unbounded velocity; this is also what the paper's law, whose
+velocity eigenvalue is −1, ends up doing.
+
+Acceleration limit and wind-up
+------------------------------
+With ``max_acceleration`` the world acceleration is scaled down to that norm (direction kept)
+and the *saturated* value is both applied (``u1_B = Rᵀ a``) and reported on ``a_W``, so the
+Kalman filter predicts with the acceleration the vehicle actually had. The law is static: the
+gain acts on the current estimated error and the feed-forward is recomputed from the current
+plan each step, with no integrator or filter state, so there is nothing to wind up while
+saturated and the law resumes exactly where the unsaturated law would be once the command
+falls below the limit.
+"""
+
+import numpy as np
+from pydrake.systems.controllers import DiscreteTimeLinearQuadraticRegulator
+from pydrake.systems.framework import BasicVector, Context, LeafSystem
+
+from drake_uuv.plants.double_integrator import double_integrator
+from drake_uuv.scenario import Scenario
+
+
+def lqr_gain(
+    time_step: float, position_weight: float, velocity_weight: float, input_weight: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(K, S)`` of Drake's discrete LQR on the relative double integrator.
+
+    ``Q = diag(position_weight I₃, velocity_weight I₃)``, ``R = input_weight I₃``; ``K`` is 3×6
+    with ``a = −K Υ`` minimising ``Σ Υᵀ Q Υ + aᵀ R a``; ``S`` solves the DARE.
+    """
+    A, B = double_integrator(time_step)
+    Q = np.diag([position_weight] * 3 + [velocity_weight] * 3)
+    K, S = DiscreteTimeLinearQuadraticRegulator(A, B, Q, input_weight * np.eye(3))
+    return K, S
+
+
+def reference_feedforward(
+    r0: np.ndarray, r1: np.ndarray, r2: np.ndarray, time_step: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``([r0; ν], a_ff)`` of the reference through ``r0, r1, r2`` (see the module notes)."""
+    t = time_step
+    nu = (-3.0 * r0 + 4.0 * r1 - r2) / (2.0 * t)
+    a_ff = (r0 - 2.0 * r1 + r2) / (t * t)
+    return np.concatenate([r0, nu]), a_ff
+
+
+def saturate_norm(a: np.ndarray, limit: float | None) -> np.ndarray:
+    """``a`` scaled down to norm ``limit`` if longer (direction kept); unchanged if None."""
+    if limit is None:
+        return a
+    a_norm = float(np.sqrt(a @ a))
+    return a * (limit / a_norm) if a_norm > limit else a
+
+
+def tracking_gain(scenario: Scenario) -> np.ndarray:
+    """The 3×6 world-frame gain ``K`` of ``a = a_ff − K (Υ̂ − Υ_ref)`` for ``tracking.type``.
+
+    For ``paper`` this is the paper's law rewritten in the world frame,
+    ``K = [(2α/t²) I, (2/t) I]`` (its ``a_ff`` is zero and its reference ``[R q*, 0]``).
+    """
+    c, t = scenario.tracking, scenario.time_step
+    if c.type == "paper":
+        return np.hstack([2.0 * c.alpha / (t * t) * np.eye(3), 2.0 / t * np.eye(3)])
+    if c.type == "lqr":
+        return lqr_gain(t, c.lqr_position_weight, c.lqr_velocity_weight, c.lqr_input_weight)[0]
+    raise ValueError(f"tracking.type: unknown tracking law, got {c.type!r}")
+
+
+def closed_loop_eigenvalues(scenario: Scenario) -> np.ndarray:
+    """Eigenvalues of ``A − B K`` of the relative double integrator, largest modulus first.
+
+    Without saturation and with perfect state knowledge they govern the tracking error. The
+    paper's law gives ``1 − α`` (three times) and ``−1`` (three times, the undamped velocity).
+    """
+    A, B = double_integrator(scenario.time_step)
+    eigenvalues = np.linalg.eigvals(A - B @ tracking_gain(scenario))
+    return eigenvalues[np.argsort(-np.abs(eigenvalues), kind="stable")]
+
+
+class LqrTrackingController(LeafSystem):
+    """``a = sat(a_ff − K (Υ̂ − [r; ν]))``, ``u1 = Rᵀ a``, with ``r = R q*`` turning with R.
+
+    ``K`` from :func:`lqr_gain`; the reference ``[r; ν]`` and ``a_ff`` from the attitude plan by
+    :func:`reference_feedforward`; ``sat`` is :func:`saturate_norm` (see the module notes for
+    the derivation, the residual and why nothing winds up). With ``feedforward=False`` the
+    reference is ``[R(k) q*, 0]`` and ``a_ff = 0`` (the plan is not read): the law then lags.
+
+    .. pydrake_system::
+
+        name: LqrTrackingController
+        input_ports:
+        - x_hat
+        - R_WB
+        - R_WB_plan
+        output_ports:
+        - u1_B
+        - a_W
+
+    - ``x_hat`` (6): the filtered relative state ``[q̂, ϑ̂]``.
+    - ``R_WB`` (9, row-major): the current attitude ``R(k)``.
+    - ``R_WB_plan`` (18): the planned ``R(k+1)`` and ``R(k+2)``, row-major (the attitude
+      generator's output of the same name).
+    - ``u1_B`` (3): the body-frame acceleration command [m/s²].
+    - ``a_W`` (3): the same acceleration in the world frame, ``R u1`` (the filter's input).
+    """
+
+    def __init__(
+        self,
+        time_step: float,
+        desired_relative_position_B: np.ndarray,
+        position_weight: float,
+        velocity_weight: float,
+        input_weight: float,
+        max_acceleration: float | None = None,
+        feedforward: bool = True,
+    ) -> None:
+        super().__init__()
+        self._time_step = float(time_step)
+        self._q_star = np.asarray(desired_relative_position_B, dtype=float)
+        self._K, _ = lqr_gain(self._time_step, position_weight, velocity_weight, input_weight)
+        self._max_acceleration = max_acceleration
+        self._feedforward = feedforward
+        self._x_hat_port = self.DeclareVectorInputPort("x_hat", 6)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
+        self._plan_port = self.DeclareVectorInputPort("R_WB_plan", 18)
+        self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1)
+        self.DeclareVectorOutputPort("a_W", 3, self._calc_a_W)
+
+    @property
+    def gain(self) -> np.ndarray:
+        """The 3×6 LQR gain ``K``."""
+        return self._K.copy()
+
+    def reference(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        """``([r(k); ν(k)], a_ff(k))`` in the world frame (``([r(k); 0], 0)`` without the
+        feed-forward)."""
+        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
+        r0 = R_WB @ self._q_star
+        if not self._feedforward:
+            return np.concatenate([r0, np.zeros(3)]), np.zeros(3)
+        plan = self._plan_port.Eval(context)
+        r1 = plan[:9].reshape(3, 3) @ self._q_star
+        r2 = plan[9:].reshape(3, 3) @ self._q_star
+        return reference_feedforward(r0, r1, r2, self._time_step)
+
+    def acceleration(self, context: Context) -> np.ndarray:
+        """The applied world acceleration ``a(k)``, after the limit."""
+        x_reference, a_ff = self.reference(context)
+        a = a_ff - self._K @ (self._x_hat_port.Eval(context) - x_reference)
+        return saturate_norm(a, self._max_acceleration)
+
+    def _calc_u1(self, context: Context, output: BasicVector) -> None:
+        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
+        output.set_value(R_WB.T @ self.get_output_port(1).Eval(context))
+
+    def _calc_a_W(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self.acceleration(context))
