@@ -49,7 +49,7 @@ def plain_loop(scenario: Scenario, seed: int) -> dict[str, np.ndarray]:
         m, gamma = range_difference_noise(scenario.estimator.noise_model, eta, d * d)
         Y = 0.5 * (d[0] ** 2 - d[1] ** 2)
         # Filter.
-        x_hat, P = range_difference_update(x_pred, P_pred, Y, m, gamma, q_s)
+        x_hat, P, _ = range_difference_update(x_pred, P_pred, Y, m, gamma, q_s)
         position_error[k] = np.linalg.norm(q - x_hat[:3])
         # Controllers.
         R_BW = R.T

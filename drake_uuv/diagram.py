@@ -13,7 +13,7 @@ from drake_uuv.estimators import RangeDifferenceKalmanFilter
 from drake_uuv.plants import TargetRandomWalk, UuvPlant
 from drake_uuv.primitives import NoiseHold
 from drake_uuv.scenario import Scenario
-from drake_uuv.sensors import DualSonar
+from drake_uuv.sensors import DualSonar, SonarFaults
 
 # Logger name → (system name, output port name). Each logs its port once per step.
 LOGGED_PORTS: dict[str, tuple[str, str]] = {
@@ -30,6 +30,10 @@ LOGGED_PORTS: dict[str, tuple[str, str]] = {
     "u1_B": ("tracking_controller", "u1_B"),
     "w_W": ("attitude_generator", "w_W"),
     "a_W": ("tracking_controller", "a_W"),
+    "sonar_status": ("sonar", "status"),
+    "multipath": ("sonar", "multipath"),
+    "measurement_status": ("estimator", "measurement_status"),
+    "nis": ("estimator", "nis"),
 }
 
 
@@ -42,6 +46,21 @@ class UuvDiagram:
     loggers: dict[str, VectorLogSink]
 
 
+def sonar_faults(scenario: Scenario) -> SonarFaults:
+    """The sonar's fault model from ``scenario.sonar`` (all off in the paper scenario)."""
+    s = scenario.sonar
+    return SonarFaults(
+        max_range=s.max_range,
+        beam_half_angle=None
+        if s.beam_half_angle_deg is None
+        else np.radians(s.beam_half_angle_deg),
+        dropout_probability=tuple(s.dropout_probability),
+        outlier_probability=s.outlier_probability,
+        outlier_scale=s.outlier_scale,
+        search_sigma=s.search_sigma,
+    )
+
+
 def make_estimator(scenario: Scenario) -> LeafSystem:
     """The estimator named by ``estimator.type``."""
     e = scenario.estimator
@@ -51,6 +70,7 @@ def make_estimator(scenario: Scenario) -> LeafSystem:
             np.asarray(scenario.target.acceleration_covariance),
             np.asarray(e.initial_estimate),
             np.asarray(e.initial_covariance),
+            e.gate_probability,
         )
     raise ValueError(f"estimator.type: unknown estimator, got {e.type!r}")
 
@@ -108,6 +128,7 @@ def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) 
             np.asarray(scenario.sonar.noise_variances),
             scenario.sonar.samples_per_step,
             scenario.estimator.noise_model,
+            sonar_faults(scenario),
         ),
         "estimator": make_estimator(scenario),
         "attitude_generator": AttitudeGenerator(
@@ -134,8 +155,13 @@ def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) 
     connect(uuv.GetOutputPort("state"), sonar.GetInputPort("uuv_state"))
     connect(uuv.GetOutputPort("R_WB"), sonar.GetInputPort("R_WB"))
     connect(target.GetOutputPort("state"), sonar.GetInputPort("target_state"))
-    for port in ("Y", "m", "Gamma", "q_s"):
-        connect(sonar.GetOutputPort(port), estimator.GetInputPort(port))
+    for port in ("Y", "m", "Gamma", "q_s", "range_samples"):
+        if estimator.HasInputPort(port):
+            connect(sonar.GetOutputPort(port), estimator.GetInputPort(port))
+    connect(sonar.GetOutputPort("status"), estimator.GetInputPort("sonar_status"))
+    if sonar.HasInputPort("x_prior"):  # pan-tilts point at the prediction
+        connect(estimator.GetOutputPort("x_prior"), sonar.GetInputPort("x_prior"))
+        connect(estimator.GetOutputPort("P_prior"), sonar.GetInputPort("P_prior"))
     connect(controller.GetOutputPort("a_W"), estimator.GetInputPort("a_W"))
     connect(estimator.GetOutputPort("x_hat"), controller.GetInputPort("x_hat"))
     connect(uuv.GetOutputPort("R_WB"), controller.GetInputPort("R_WB"))
@@ -152,10 +178,14 @@ def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) 
     }
     if attitude.HasInputPort("rotation_noise"):
         random_ports["rotation_noise"] = attitude.GetInputPort("rotation_noise")
+    distributions = {"fault_uniform": RandomDistribution.kUniform,
+                     "multipath_noise": RandomDistribution.kExponential}  # fmt: skip
+    for name in distributions:
+        if sonar.HasInputPort(name):
+            random_ports[name] = sonar.GetInputPort(name)
     for name, port in random_ports.items():
-        source = builder.AddNamedSystem(
-            name, RandomSource(RandomDistribution.kGaussian, port.size(), t)
-        )
+        distribution = distributions.get(name, RandomDistribution.kGaussian)
+        source = builder.AddNamedSystem(name, RandomSource(distribution, port.size(), t))
         hold = builder.AddNamedSystem(f"{name}_hold", NoiseHold(port.size(), t))
         connect(source.get_output_port(), hold.get_input_port())
         connect(hold.get_output_port(), port)

@@ -71,6 +71,19 @@ class SonarConfig:
     noise_variances: list[float] = field(default_factory=lambda: [0.01, 0.01])
     # f: range samples per sonar and step (the first forms Y; all estimate d̄²).
     samples_per_step: int = 1
+    # Faults and limits, all off by default (the paper assumes every return arrives).
+    # No return beyond this range [m]; None: unlimited.
+    max_range: float | None = None
+    # Each pan-tilt sonar points at the predicted target; no return beyond this angle [deg].
+    beam_half_angle_deg: float | None = None
+    # Within a step the pan-tilt scans this many σ of the predicted position (0: no scan).
+    search_sigma: float = 3.0
+    # Per sonar, the probability that a step's return is lost.
+    dropout_probability: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    # Per sonar and step, the probability of a multipath return, longer by an exponentially
+    # distributed excess of mean outlier_scale [m].
+    outlier_probability: float = 0.0
+    outlier_scale: float = 1.0
 
 
 @dataclass
@@ -83,6 +96,8 @@ class EstimatorConfig:
     # Υ̂(0|−1) = [q̂, ϑ̂] and P(0|−1). The paper sets every unstated initial value to zero.
     initial_estimate: list[float] = field(default_factory=lambda: [0.0] * 6)
     initial_covariance: list[list[float]] = field(default_factory=lambda: _identity(6))
+    # Reject a measurement whose NIS exceeds the χ² quantile of this probability; None: no gate.
+    gate_probability: float | None = None
 
 
 @dataclass
@@ -362,10 +377,25 @@ def validate_scenario(s: Scenario) -> None:
     if s.sonar.samples_per_step < 1:
         _fail("sonar.samples_per_step", "must be ≥ 1", s.sonar.samples_per_step)
 
+    if s.sonar.max_range is not None:
+        _positive("sonar.max_range", s.sonar.max_range)
+    if s.sonar.beam_half_angle_deg is not None and not 0.0 < s.sonar.beam_half_angle_deg <= 180.0:
+        _fail("sonar.beam_half_angle_deg", "must be in (0, 180]", s.sonar.beam_half_angle_deg)
+    _positive("sonar.search_sigma", s.sonar.search_sigma, strict=False)
+    dropout = _vector("sonar.dropout_probability", s.sonar.dropout_probability, 2)
+    if np.any((dropout < 0.0) | (dropout >= 1.0)):
+        _fail("sonar.dropout_probability", "must be in [0, 1)", s.sonar.dropout_probability)
+    if not 0.0 <= s.sonar.outlier_probability < 1.0:
+        _fail("sonar.outlier_probability", "must be in [0, 1)", s.sonar.outlier_probability)
+    _positive("sonar.outlier_scale", s.sonar.outlier_scale)
+
     _choice("estimator.type", s.estimator.type, ESTIMATOR_TYPES)
     _choice("estimator.noise_model", s.estimator.noise_model, NOISE_MODELS)
     _vector("estimator.initial_estimate", s.estimator.initial_estimate, 6)
     _spd("estimator.initial_covariance", s.estimator.initial_covariance, 6)
+    gate = s.estimator.gate_probability
+    if gate is not None and not (math.isfinite(gate) and 0.0 < gate < 1.0):
+        _fail("estimator.gate_probability", "must be in (0, 1)", gate)
 
     _choice("attitude.mode", s.attitude.mode, ATTITUDE_MODES)
     for name in ("rho", "h_amplitude", "h_frequency"):

@@ -59,6 +59,10 @@ def log_from_loggers(built: UuvDiagram, context, scenario: Scenario) -> dict[str
         "u1": data["u1_B"],
         "u2": data["w_W"],
         "a_world": data["a_W"],
+        "sonar_status": data["sonar_status"].astype(np.int8),
+        "multipath": data["multipath"],
+        "measurement_status": data["measurement_status"][:, 0].astype(np.int8),
+        "nis": data["nis"][:, 0],
     }
 
 

@@ -11,6 +11,7 @@ LOG_KEYS = {
     "k": (), "time": (), "p_uuv": (3,), "v_uuv": (3,), "R_WB": (3, 3), "p_target": (3,),
     "v_target": (3,), "ranges": (2,), "Y": (), "m": (), "Gamma": (), "q_s": (3,),
     "q_hat": (3,), "v_hat": (3,), "P": (6, 6), "u1": (3,), "u2": (3,), "a_world": (3,),
+    "sonar_status": (2,), "multipath": (2,), "measurement_status": (), "nis": (),
 }  # fmt: skip
 
 
@@ -46,6 +47,9 @@ def test_log_layout(paper_run) -> None:
         log["a_world"], np.einsum("kij,kj->ki", log["R_WB"], log["u1"]), rtol=1e-12, atol=1e-12
     )
     assert_allclose(np.einsum("kij,j->ki", log["R_WB"], [-1, 1, 0]), log["q_s"], atol=1e-12)
+    # The paper scenario has no faults: every measurement was used.
+    assert not log["sonar_status"].any() and not log["measurement_status"].any()
+    assert not log["multipath"].any() and np.all(np.isfinite(log["nis"]))
 
 
 def test_attitude_stays_orthonormal(paper_run) -> None:

@@ -1,5 +1,6 @@
 """Two monostatic sonars at ±½ b about the body origin, and the linear measurement Y."""
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,13 +45,49 @@ def range_difference_noise(
     )
 
 
+# Per-sonar return status, the ``status`` output port.
+VALID, DROPPED, OUT_OF_BEAM, OUT_OF_RANGE = 0, 1, 2, 3
+STATUS_NAMES = {VALID: "valid", DROPPED: "dropped", OUT_OF_BEAM: "out of beam",
+                OUT_OF_RANGE: "out of range"}  # fmt: skip
+
+
+@dataclass
+class SonarFaults:
+    """Sensor realism beyond the paper; the defaults switch every effect off.
+
+    - ``max_range`` [m]: no return from a target farther than this.
+    - ``beam_half_angle`` [rad]: each pan-tilt sonar points at the estimator's *predicted*
+      target position (known before the step's measurement, so there is no algebraic loop);
+      a target further off that axis gives no return. Within one step (hundreds of pings at
+      the sonar's rate) the pan-tilt scans the prediction's ``search_sigma``-σ region, so the
+      acceptance cone is the wider of the beam and that region's angular radius: a target
+      lost while the estimate drifts is found again once the uncertainty covers it.
+    - ``dropout_probability`` (per sonar): a return lost, independently each step.
+    - ``outlier_probability``, ``outlier_scale`` [m]: a multipath return, longer by an
+      exponentially distributed excess of mean ``outlier_scale`` (all f samples of that step).
+    """
+
+    max_range: float | None = None
+    beam_half_angle: float | None = None
+    dropout_probability: tuple[float, float] = (0.0, 0.0)
+    outlier_probability: float = 0.0
+    outlier_scale: float = 1.0
+    search_sigma: float = 3.0
+
+    @property
+    def random_faults(self) -> bool:
+        return max(self.dropout_probability) > 0.0 or self.outlier_probability > 0.0
+
+
 @dataclass
 class _Measurement:
-    range_samples: np.ndarray  # (2, f)
-    Y: float
+    range_samples: np.ndarray  # (2, f); NaN where a sonar has no return
+    Y: float  # NaN unless both sonars returned
     m: float
     Gamma: float
     q_s: np.ndarray  # (3,)
+    status: np.ndarray  # (2,) VALID, DROPPED, OUT_OF_BEAM or OUT_OF_RANGE
+    multipath: np.ndarray  # (2,) the true multipath excess [m], 0 without an outlier
 
 
 class DualSonar(LeafSystem):
@@ -69,6 +106,10 @@ class DualSonar(LeafSystem):
         - R_WB
         - target_state
         - range_noise
+        - x_prior (with a beam)
+        - P_prior (with a beam)
+        - fault_uniform (with dropouts or outliers)
+        - multipath_noise (with dropouts or outliers)
         output_ports:
         - ranges
         - range_samples
@@ -76,6 +117,8 @@ class DualSonar(LeafSystem):
         - m
         - Gamma
         - q_s
+        - status
+        - multipath
 
     - ``uuv_state`` (6) ``[p_WU, v_WU]``; ``R_WB`` (9, row-major); ``target_state`` (6)
       ``[p_WT, v_WT]``.
@@ -84,6 +127,15 @@ class DualSonar(LeafSystem):
     - ``range_samples`` (2f): all samples, sonar 1's then sonar 2's [m].
     - ``Y``, ``m``, ``Gamma`` (1 each): the measurement, its noise mean and variance.
     - ``q_s`` (3): the world baseline ``R_WB b`` (so ``C(k) = [q_sᵀ, 0]``).
+    - ``status`` (2): per sonar, ``VALID``, ``DROPPED``, ``OUT_OF_BEAM`` or ``OUT_OF_RANGE``.
+      A sonar without a return has NaN ranges, and ``Y``, ``m``, ``Gamma`` are NaN unless
+      both returned.
+    - ``multipath`` (2): ground truth for analysis, the excess added to each sonar's return.
+
+    Faults (:class:`SonarFaults`, all off by default) add ports only when switched on:
+    ``x_prior`` (6) and ``P_prior`` (36), the estimator's prediction the pan-tilts point at, the
+    random ports ``fault_uniform`` (4, uniform: dropout then outlier draws per sonar) and
+    ``multipath_noise`` (2, exponential).
     """
 
     def __init__(
@@ -92,8 +144,10 @@ class DualSonar(LeafSystem):
         noise_variances: np.ndarray,
         samples_per_step: int = 1,
         noise_model: str = "derived",
+        faults: SonarFaults | None = None,
     ) -> None:
         super().__init__()
+        self._faults = faults or SonarFaults()
         self._b = np.asarray(baseline_B, dtype=float)
         self._eta = np.asarray(noise_variances, dtype=float)
         self._sigma = np.sqrt(self._eta)[:, np.newaxis]
@@ -107,12 +161,25 @@ class DualSonar(LeafSystem):
         self._noise_port = self.DeclareVectorInputPort(
             "range_noise", 2 * self._f, RandomDistribution.kGaussian
         )
+        self._prior_port = self._prior_covariance_port = None
+        if self._faults.beam_half_angle is not None:
+            self._prior_port = self.DeclareVectorInputPort("x_prior", 6)
+            self._prior_covariance_port = self.DeclareVectorInputPort("P_prior", 36)
+        if self._faults.random_faults:
+            self._uniform_port = self.DeclareVectorInputPort(
+                "fault_uniform", 4, RandomDistribution.kUniform
+            )
+            self._multipath_port = self.DeclareVectorInputPort(
+                "multipath_noise", 2, RandomDistribution.kExponential
+            )
         # One measurement per context, shared by every output port.
         self._measurement = self.DeclareCacheEntry(
             "measurement",
             ValueProducer(
                 allocate=AbstractValue.Make(
-                    _Measurement(np.zeros((2, self._f)), 0, 0, 0, np.zeros(3))
+                    _Measurement(
+                        np.zeros((2, self._f)), 0, 0, 0, np.zeros(3), np.zeros(2), np.zeros(2)
+                    )
                 ).Clone,
                 calc=self._calc_measurement,
             ),
@@ -125,6 +192,12 @@ class DualSonar(LeafSystem):
         self.DeclareVectorOutputPort("m", 1, self._calc_m, depends)
         self.DeclareVectorOutputPort("Gamma", 1, self._calc_Gamma, depends)
         self.DeclareVectorOutputPort("q_s", 3, self._calc_q_s, depends)
+        self.DeclareVectorOutputPort("status", 2, self._calc_status, depends)
+        self.DeclareVectorOutputPort("multipath", 2, self._calc_multipath, depends)
+
+    @property
+    def faults(self) -> SonarFaults:
+        return self._faults
 
     def _calc_measurement(self, context: Context, value: AbstractValue) -> None:
         p_WU = self._uuv_port.Eval(context)[:3]
@@ -135,11 +208,54 @@ class DualSonar(LeafSystem):
         true_ranges = np.array([norm(q + 0.5 * q_s), norm(q - 0.5 * q_s)])
         noise = self._noise_port.Eval(context).reshape(2, self._f)
         samples = true_ranges[:, np.newaxis] + self._sigma * noise
+        status = np.zeros(2)
+        multipath = np.zeros(2)
+        if self._prior_port is not None or self._faults.max_range is not None:
+            status = self._geometry_status(context, q, q_s, true_ranges)
+        if self._faults.random_faults:
+            uniform = self._uniform_port.Eval(context)
+            dropped = uniform[:2] < self._faults.dropout_probability
+            status[(status == VALID) & dropped] = DROPPED
+            outlier = uniform[2:] < self._faults.outlier_probability
+            multipath = np.where(
+                outlier, self._faults.outlier_scale * self._multipath_port.Eval(context), 0.0
+            )
+            samples += multipath[:, np.newaxis]
+        if status.any():
+            samples[status != VALID] = np.nan
         d1, d2 = samples[:, 0]
         m, gamma = range_difference_noise(
             self._noise_model, self._eta, np.mean(samples * samples, axis=1)
         )
-        value.set_value(_Measurement(samples, 0.5 * (d1 * d1 - d2 * d2), m, gamma, q_s))
+        value.set_value(
+            _Measurement(samples, 0.5 * (d1 * d1 - d2 * d2), m, gamma, q_s, status, multipath)
+        )
+
+    def _geometry_status(
+        self, context: Context, q: np.ndarray, q_s: np.ndarray, true_ranges: np.ndarray
+    ) -> np.ndarray:
+        """OUT_OF_RANGE / OUT_OF_BEAM per sonar from the true and the pointed-at target."""
+        status = np.zeros(2)
+        if self._faults.max_range is not None:
+            status[true_ranges > self._faults.max_range] = OUT_OF_RANGE
+        if self._prior_port is not None:
+            q_prior = self._prior_port.Eval(context)[:3]
+            P_position = self._prior_covariance_port.Eval(context).reshape(6, 6)[:3, :3]
+            search_radius = self._faults.search_sigma * math.sqrt(
+                max(np.linalg.eigvalsh(P_position)[-1], 0.0)
+            )
+            for i, offset in enumerate((0.5 * q_s, -0.5 * q_s)):
+                to_target = -(q + offset)  # from sonar i to the true target
+                axis = -(q_prior + offset)  # from sonar i to the predicted target
+                distance = norm(axis)
+                half_angle = max(
+                    self._faults.beam_half_angle,
+                    math.pi if search_radius >= distance else math.asin(search_radius / distance),
+                )
+                cos_angle = (to_target @ axis) / (norm(to_target) * distance + 1e-300)
+                if status[i] == VALID and cos_angle < math.cos(half_angle):
+                    status[i] = OUT_OF_BEAM
+        return status
 
     def _get(self, context: Context) -> _Measurement:
         return self._measurement.Eval(context)
@@ -161,3 +277,9 @@ class DualSonar(LeafSystem):
 
     def _calc_q_s(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._get(context).q_s)
+
+    def _calc_status(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._get(context).status)
+
+    def _calc_multipath(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._get(context).multipath)

@@ -1,8 +1,11 @@
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 
 from drake_uuv.estimators import RangeDifferenceKalmanFilter
+from drake_uuv.estimators.base import GATED
 from drake_uuv.plants.double_integrator import double_integrator
+from drake_uuv.sensors.dual_sonar import DROPPED, OUT_OF_BEAM, OUT_OF_RANGE, VALID
 from drake_uuv.testing import discrete_update, fixed_context
 
 T = 0.5
@@ -22,6 +25,7 @@ def inputs(**overrides: np.ndarray) -> dict[str, np.ndarray]:
         Gamma=np.array([0.3]),
         q_s=np.array([-0.6, 1.1, 0.5]),
         a_W=np.array([1.0, -3.0, 0.5]),
+        sonar_status=np.zeros(2),
     )
     values.update(overrides)
     return values
@@ -29,14 +33,18 @@ def inputs(**overrides: np.ndarray) -> dict[str, np.ndarray]:
 
 def test_ports_and_feedthrough() -> None:
     kf = make_filter()
-    sizes = {"Y": 1, "m": 1, "Gamma": 1, "q_s": 3, "a_W": 3}
+    sizes = {"Y": 1, "m": 1, "Gamma": 1, "q_s": 3, "sonar_status": 2, "a_W": 3}
     assert {n: kf.GetInputPort(n).size() for n in sizes} == sizes
-    assert kf.GetOutputPort("x_hat").size() == 6 and kf.GetOutputPort("P").size() == 36
+    outputs = {"x_hat": 6, "P": 36, "x_prior": 6, "P_prior": 36, "measurement_status": 1, "nis": 1}
+    assert {n: kf.GetOutputPort(n).size() for n in outputs} == outputs
     x_hat = kf.GetOutputPort("x_hat").get_index()
     # The filtered estimate feeds through from the measurement, not from the control input.
     for name in ("Y", "m", "Gamma", "q_s"):
         assert kf.HasDirectFeedthrough(kf.GetInputPort(name).get_index(), x_hat)
     assert not kf.HasDirectFeedthrough(kf.GetInputPort("a_W").get_index(), x_hat)
+    # The prior depends on state only, so a sonar may point at it without an algebraic loop.
+    x_prior = kf.GetOutputPort("x_prior").get_index()
+    assert not any(kf.HasDirectFeedthrough(i, x_prior) for i in range(kf.num_input_ports()))
 
 
 def test_update_matches_the_information_form() -> None:
@@ -62,9 +70,9 @@ def test_prediction_is_the_next_discrete_state() -> None:
     x = kf.GetOutputPort("x_hat").Eval(context)
     P = kf.GetOutputPort("P").Eval(context).reshape(6, 6)
     A, B = double_integrator(T)
-    next_state = discrete_update(kf, context)
-    assert_allclose(next_state[:6], A @ x + B @ u["a_W"], rtol=1e-14)
-    assert_allclose(next_state[6:].reshape(6, 6), A @ P @ A.T + B @ W @ B.T, rtol=1e-13)
+    assert_allclose(discrete_update(kf, context, group=0), A @ x + B @ u["a_W"], rtol=1e-14)
+    P_next = discrete_update(kf, context, group=1).reshape(6, 6)
+    assert_allclose(P_next, A @ P @ A.T + B @ W @ B.T, rtol=1e-13)
 
 
 def test_a_measurement_along_the_baseline_only_informs_that_direction() -> None:
@@ -75,3 +83,46 @@ def test_a_measurement_along_the_baseline_only_informs_that_direction() -> None:
     assert_allclose(np.diag(P)[1:], 1.0)  # y, z and the velocities are untouched
     assert P[0, 0] < 1.0
     assert_allclose(x, [2.0 / 1.3, 0, 0, 0, 0, 0])  # K = 1/(1 + Γ) with P = I, Γ = 0.3
+
+
+def test_update_reports_its_nis_and_status() -> None:
+    kf = make_filter()
+    u = inputs()
+    context = fixed_context(kf, **u)
+    C = np.concatenate([u["q_s"], np.zeros(3)])
+    innovation = u["Y"][0] - C @ x0 - u["m"][0]
+    S = C @ P0 @ C + u["Gamma"][0]
+    assert kf.GetOutputPort("nis").Eval(context)[0] == pytest.approx(innovation**2 / S)
+    assert kf.GetOutputPort("measurement_status").Eval(context)[0] == VALID
+    assert_allclose(kf.GetOutputPort("x_prior").Eval(context), x0)
+
+
+@pytest.mark.parametrize(
+    "status, code", [((1, 0), DROPPED), ((0, 2), OUT_OF_BEAM), ((3, 1), OUT_OF_RANGE)]
+)
+def test_without_both_returns_the_filter_only_predicts(status: tuple[int, int], code: int) -> None:
+    kf = make_filter()
+    u = inputs(sonar_status=np.array(status, float), Y=np.array([np.nan]))
+    context = fixed_context(kf, **u)
+    assert_allclose(kf.GetOutputPort("x_hat").Eval(context), x0)
+    assert_allclose(kf.GetOutputPort("P").Eval(context).reshape(6, 6), P0)
+    assert kf.GetOutputPort("measurement_status").Eval(context)[0] == code
+    assert np.isnan(kf.GetOutputPort("nis").Eval(context)[0])
+    A, B = double_integrator(T)
+    assert_allclose(discrete_update(kf, context, group=0), A @ x0 + B @ u["a_W"])
+
+
+def test_nis_gate_rejects_an_outlier_and_passes_a_normal_measurement() -> None:
+    gated = RangeDifferenceKalmanFilter(T, W, x0, P0, gate_probability=0.99)
+    C = np.concatenate([inputs()["q_s"], np.zeros(3)])
+    S = C @ P0 @ C + 0.3
+    threshold = 6.634896601021214  # χ²(1) quantile at 0.99
+    for sigmas, expected in ((1.0, VALID), (3.0, GATED)):  # 1σ passes; 3σ (NIS 9) is gated
+        Y = C @ x0 + 0.004 + sigmas * np.sqrt(S)
+        context = fixed_context(gated, **inputs(Y=np.array([Y])))
+        assert gated.GetOutputPort("measurement_status").Eval(context)[0] == expected
+        assert gated.GetOutputPort("nis").Eval(context)[0] == pytest.approx(sigmas**2)
+        assert (sigmas**2 > threshold) == (expected == GATED)
+        if expected == GATED:
+            assert_allclose(gated.GetOutputPort("x_hat").Eval(context), x0)
+    assert gated.gate_threshold(1) == pytest.approx(threshold, rel=1e-9)

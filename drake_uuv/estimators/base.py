@@ -1,0 +1,154 @@
+"""What every relative-state estimator shares: prediction, gating, ports and status codes."""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    DiscreteValues,
+    InputPort,
+    LeafSystem,
+    ValueProducer,
+)
+
+from drake_uuv.analysis.stats import chi2_ppf
+from drake_uuv.plants.double_integrator import double_integrator
+from drake_uuv.sensors.dual_sonar import VALID
+
+# The step's measurement status (``measurement_status`` output): the sonar codes
+# (VALID = 0 the measurement was used, DROPPED = 1, OUT_OF_BEAM = 2, OUT_OF_RANGE = 3), or:
+GATED = 4  # rejected by the NIS gate
+
+
+@dataclass
+class MeasurementUpdate:
+    """A subclass's proposed update: the posterior and its innovation statistic."""
+
+    x: np.ndarray
+    P: np.ndarray
+    nis: float  # normalised innovation squared νᵀ S⁻¹ ν
+    dof: int  # dimension of the innovation
+
+
+@dataclass
+class FilteredEstimate:
+    """``Υ̂(k|k)``, ``P(k|k)``, the step's measurement status and NIS (NaN: no update)."""
+
+    x: np.ndarray
+    P: np.ndarray
+    status: int = VALID
+    nis: float = math.nan
+
+
+class RelativeStateEstimator(LeafSystem):
+    """Base of the estimators of ``Υ = [q, ϑ]``; subclasses supply the measurement update.
+
+    Discrete state: the *predicted* ``Υ̂(k|k−1)`` (group 0) and ``P(k|k−1)`` (group 1). The
+    filtered estimate of step k is a direct-feedthrough output of the measurement inputs only
+    (never of ``a_W``), so the controller acts on ``Υ̂(k|k)`` in the same tick as in the
+    paper, and the periodic update predicts ``Υ̂(k+1|k) = A Υ̂(k|k) + B a_W(k)``,
+    ``P(k+1|k) = A P Aᵀ + B W Bᵀ``.
+
+    Steps without a usable measurement (a sonar status other than VALID, as the subclass
+    decides) only predict. With ``gate_probability`` set, an update whose NIS exceeds the χ²
+    quantile of that probability (for its innovation dimension) is rejected (status GATED).
+
+    Common ports, after the subclass's measurement inputs:
+
+    - input ``sonar_status`` (2): the sonar's per-sonar return status.
+    - input ``a_W`` (3): the vehicle's applied world acceleration ``R u1`` at step k.
+    - output ``x_hat`` (6): filtered ``Υ̂(k|k) = [q̂, ϑ̂]``; ``P`` (36): ``P(k|k)`` row-major.
+    - outputs ``x_prior`` (6), ``P_prior`` (36): ``Υ̂(k|k−1)`` and ``P(k|k−1)`` (state only,
+      so the sonar may point at the prediction without an algebraic loop).
+    - output ``measurement_status`` (1): VALID, DROPPED, OUT_OF_BEAM, OUT_OF_RANGE or GATED.
+    - output ``nis`` (1): the update's normalised innovation squared (NaN when none).
+    """
+
+    def __init__(
+        self,
+        time_step: float,
+        acceleration_covariance: np.ndarray,
+        initial_estimate: np.ndarray,
+        initial_covariance: np.ndarray,
+        gate_probability: float | None = None,
+    ) -> None:
+        super().__init__()
+        self._A, self._B = double_integrator(time_step)
+        self._Q = self._B @ np.asarray(acceleration_covariance, dtype=float) @ self._B.T
+        self._gate_probability = gate_probability
+        self._gate_thresholds: dict[int, float] = {}
+        self._x_index = self.DeclareDiscreteState(np.asarray(initial_estimate, dtype=float))
+        self._P_index = self.DeclareDiscreteState(np.asarray(initial_covariance, float).ravel())
+        self._time_step = float(time_step)
+
+    def _declare_common_ports(self, measurement_ports: list[InputPort]) -> None:
+        """Call at the end of a subclass ``__init__``, after declaring its measurement inputs."""
+        self._status_port = self.DeclareVectorInputPort("sonar_status", 2)
+        self._a_port = self.DeclareVectorInputPort("a_W", 3)
+        tickets = {port.ticket() for port in [*measurement_ports, self._status_port]}
+        self._filtered = self.DeclareCacheEntry(
+            "filtered estimate",
+            ValueProducer(
+                allocate=AbstractValue.Make(FilteredEstimate(np.zeros(6), np.eye(6))).Clone,
+                calc=self._calc_filtered,
+            ),
+            tickets | {self.xd_ticket()},
+        )
+        depends = {self._filtered.ticket()}
+        self.DeclareVectorOutputPort("x_hat", 6, self._calc_x_hat, depends)
+        self.DeclareVectorOutputPort("P", 36, self._calc_P, depends)
+        self.DeclareStateOutputPort("x_prior", self._x_index)
+        self.DeclareStateOutputPort("P_prior", self._P_index)
+        self.DeclareVectorOutputPort("measurement_status", 1, self._calc_status, depends)
+        self.DeclareVectorOutputPort("nis", 1, self._calc_nis, depends)
+        self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._predict)
+
+    def measurement_update(
+        self, context: Context, x_prior: np.ndarray, P_prior: np.ndarray, status: np.ndarray
+    ) -> MeasurementUpdate | None:
+        """The posterior from this step's measurement, or None when there is none to use."""
+        raise NotImplementedError
+
+    def gate_threshold(self, dof: int) -> float:
+        """The NIS above which an update is rejected (``inf`` without a gate)."""
+        if self._gate_probability is None:
+            return math.inf
+        if dof not in self._gate_thresholds:
+            self._gate_thresholds[dof] = chi2_ppf(self._gate_probability, dof)
+        return self._gate_thresholds[dof]
+
+    def _calc_filtered(self, context: Context, value: AbstractValue) -> None:
+        x_prior = context.get_discrete_state(self._x_index).get_value()
+        P_prior = context.get_discrete_state(self._P_index).get_value().reshape(6, 6)
+        status = self._status_port.Eval(context)
+        update = self.measurement_update(context, x_prior, P_prior, status)
+        if update is None:
+            invalid = status[status != VALID]
+            code = int(invalid[0]) if invalid.size else VALID
+            value.set_value(FilteredEstimate(x_prior.copy(), P_prior.copy(), code))
+        elif update.nis > self.gate_threshold(update.dof):
+            value.set_value(FilteredEstimate(x_prior.copy(), P_prior.copy(), GATED, update.nis))
+        else:
+            value.set_value(FilteredEstimate(update.x, update.P, VALID, update.nis))
+
+    def _predict(self, context: Context, discrete_state: DiscreteValues) -> None:
+        filtered: FilteredEstimate = self._filtered.Eval(context)
+        a_W = self._a_port.Eval(context)
+        discrete_state.set_value(self._x_index, self._A @ filtered.x + self._B @ a_W)
+        P = self._A @ filtered.P @ self._A.T + self._Q
+        discrete_state.set_value(self._P_index, P.ravel())
+
+    def _calc_x_hat(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._filtered.Eval(context).x)
+
+    def _calc_P(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._filtered.Eval(context).P.ravel())
+
+    def _calc_status(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._filtered.Eval(context).status)
+
+    def _calc_nis(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._filtered.Eval(context).nis)
