@@ -28,6 +28,7 @@ import io
 import json
 import math
 import os
+import signal
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -54,6 +55,7 @@ INTERVAL_METHOD = (
     "resample combines the per-run mean-square errors); fractions by the Wilson score interval"
 )
 _SCHEMA = 1
+_PR_SET_PDEATHSIG = 1  # <sys/prctl.h>
 _STUDY_FILE = "study.json"
 _PARTS = "runs"
 
@@ -255,6 +257,21 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
+def _die_with_parent() -> None:
+    """Pool-worker initializer: on Linux, have the kernel kill the worker if the parent dies.
+
+    Otherwise a killed parent (SIGKILL, out of memory) leaves forked workers blocked forever
+    on the task queue, whose write end they inherited.
+    """
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):  # not Linux: nothing to do
+        pass
+
+
 def _execute_local(
     tasks: list[tuple[int, Scenario, list[int]]],
     workers: int,
@@ -269,7 +286,9 @@ def _execute_local(
 
     # fork: the workers inherit the imported pydrake (≈1.2 s per process otherwise).
     context = multiprocessing.get_context("fork")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+    pool = ProcessPoolExecutor(
+        max_workers=workers, mp_context=context, initializer=_die_with_parent
+    )
     try:
         pending = {pool.submit(_run_task, task) for task in tasks}
         while pending:
@@ -326,6 +345,8 @@ def run_studies(
     ``chunk_size``: seeds per task (default: small enough to balance the load and to lose
     little on interruption, large enough to keep task overhead negligible).
     """
+    if chunk_size is not None and chunk_size < 1:
+        raise MonteCarloError(f"--chunk-size: must be ≥ 1, got {chunk_size}")
     for study in studies:
         if study.runs < 1:
             raise MonteCarloError(f"--runs: must be ≥ 1, got {study.runs}")
@@ -495,7 +516,7 @@ def finish_study(study: Study, computed: int = 0, figures: bool = True) -> Study
 
 
 def add_execution_options(parser: argparse.ArgumentParser) -> None:
-    """``--runs``, ``--workers``, ``--scheduler``, ``--resume``, ``--no-progress``."""
+    """The options of how a study runs: runs, workers, scheduler, resume, chunk size, progress."""
     parser.add_argument("--runs", type=int, default=100, help="runs per study (default: 100)")
     parser.add_argument(
         "--workers", type=int, default=None, help="local processes (default: every core)"
@@ -509,6 +530,12 @@ def add_execution_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--resume", action="store_true", help="keep finished runs in --out, compute the rest"
     )
+    parser.add_argument(
+        "--chunk-size",
+        type=int,
+        default=None,
+        help="seeds per task (default: automatic; smaller loses less on interruption)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
@@ -518,6 +545,7 @@ def execution_options(args: argparse.Namespace) -> dict[str, Any]:
         workers=args.workers,
         scheduler=args.scheduler,
         resume=args.resume,
+        chunk_size=args.chunk_size,
         progress=not args.no_progress,
     )
 
