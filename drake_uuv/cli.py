@@ -11,8 +11,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from drake_uuv import compare, montecarlo
+from drake_uuv.monitor import SimulationFailure
 from drake_uuv.scenario import Scenario, ScenarioError, load_scenario
 
+EXIT_RUN_FAILED = 1
 EXIT_BAD_INPUT = 2
 
 
@@ -49,11 +51,19 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
 def _run(args: argparse.Namespace) -> int:
     from drake_uuv.analysis.figures import write_run_figures
     from drake_uuv.analysis.plots import plot_errors
-    from drake_uuv.simulation import simulate
+    from drake_uuv.simulation import ClosedLoopSimulation
 
     scenario = scenario_from_args(args)
+    if args.realtime_rate < 0:
+        raise UsageError(f"--realtime-rate: must be ≥ 0, got {args.realtime_rate}")
     out = Path(args.out)
-    result = simulate(scenario)
+    meshcat = None
+    if args.meshcat:
+        from pydrake.geometry import StartMeshcat
+
+        meshcat = StartMeshcat()
+        print(f"Meshcat is serving the live scene at {meshcat.web_url()}")
+    result = ClosedLoopSimulation(scenario, meshcat=meshcat).run(realtime_rate=args.realtime_rate)
     result.save(out)
     plot_errors(result, out / "errors.png")
     write_run_figures(result.log, scenario, out / "figures")
@@ -64,6 +74,8 @@ def _run(args: argparse.Namespace) -> int:
         f"{m['tracking_rmse']:.4f} m, mean NEES {m['nees_mean']:.2f} (k ≥ "
         f"{scenario.steady_state_start}) -> {out}/"
     )
+    if meshcat is not None and sys.stdin.isatty():
+        input("The scene stays up until you press Enter. ")
     return 0
 
 
@@ -73,7 +85,63 @@ def _add_run(subparsers: argparse._SubParsersAction) -> None:
     )
     add_scenario_options(parser)
     parser.add_argument("--out", default="out/paper", help="output folder (default: out/paper)")
+    parser.add_argument(
+        "--meshcat", action="store_true", help="draw the scene live in Meshcat (localhost)"
+    )
+    parser.add_argument(
+        "--realtime-rate",
+        type=float,
+        default=0.0,
+        help="pace the simulation at this multiple of real time (0: as fast as possible; "
+        "with --meshcat, try 10)",
+    )
     parser.set_defaults(handler=_run)
+
+
+def _animate(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from drake_uuv.simulation import simulate
+    from drake_uuv.visualization import record_animation
+
+    if args.playback_speed <= 0:
+        raise UsageError(f"--playback-speed: must be > 0, got {args.playback_speed}")
+    if args.trail_length < 0:
+        raise UsageError(f"--trail-length: must be ≥ 0, got {args.trail_length}")
+    scenario = scenario_from_args(args)
+    result = simulate(scenario)
+    path = record_animation(
+        result.log,
+        np.asarray(scenario.sonar.baseline),
+        scenario.time_step,
+        Path(args.out) / "animation.html",
+        playback_speed=args.playback_speed,
+        trail_length=args.trail_length,
+        follow_target=not args.fixed_camera,
+    )
+    size = path.stat().st_size / 1e6
+    print(f"wrote {path} ({size:.1f} MB, self-contained: open it in any browser, offline)")
+    return 0
+
+
+def _add_animate(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "animate", help="simulate and write a self-contained 3-D animation (HTML)"
+    )
+    add_scenario_options(parser)
+    parser.add_argument("--out", default="out/paper", help="output folder (default: out/paper)")
+    parser.add_argument(
+        "--playback-speed", type=float, default=4.0, help="simulated seconds per second (4)"
+    )
+    parser.add_argument(
+        "--trail-length", type=int, default=50, help="steps of trajectory trail (0: none)"
+    )
+    parser.add_argument(
+        "--fixed-camera",
+        action="store_true",
+        help="world-fixed view instead of following the target",
+    )
+    parser.set_defaults(handler=_animate)
 
 
 def _diagram(args: argparse.Namespace) -> int:
@@ -110,6 +178,7 @@ def _add_diagram(subparsers: argparse._SubParsersAction) -> None:
 SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_run,
     _add_diagram,
+    _add_animate,
     montecarlo.add_subcommand,
     compare.add_subcommand,
 ]
@@ -131,6 +200,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ScenarioError, UsageError) as e:
         print(f"drake-uuv: error: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except SimulationFailure as e:
+        print(f"drake-uuv: {e}", file=sys.stderr)
+        return EXIT_RUN_FAILED
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common import RandomDistribution
+from pydrake.geometry import Meshcat
 from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import LogVectorOutput, RandomSource, VectorLogSink
@@ -94,7 +95,9 @@ def make_tracking_controller(scenario: Scenario) -> LeafSystem:
     raise ValueError(f"tracking.type: unknown tracking law, got {c.type!r}")
 
 
-def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) -> UuvDiagram:
+def make_uuv_diagram(
+    scenario: Scenario, builder: DiagramBuilder | None = None, meshcat: Meshcat | None = None
+) -> UuvDiagram:
     """Builds the paper's closed loop from a validated scenario.
 
     Systems: ``uuv``, ``target``, ``sonar``, ``estimator``, ``attitude_generator``,
@@ -104,7 +107,8 @@ def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) 
     ``log_<name>`` for each entry of :data:`LOGGED_PORTS`, sampled once per step so column k
     holds the value at step k, before that step's update.
 
-    Pass a ``builder`` to add systems of your own (a visualiser, say) before building.
+    Pass a ``builder`` to add systems of your own before building, and ``meshcat`` to draw the
+    scene live (a ``LiveMeshcatVisualizer`` named ``meshcat_visualizer``).
     """
     t = scenario.time_step
     builder = builder or DiagramBuilder()
@@ -195,6 +199,21 @@ def make_uuv_diagram(scenario: Scenario, builder: DiagramBuilder | None = None) 
         logger = LogVectorOutput(systems[system_name].GetOutputPort(port_name), builder, t)
         logger.set_name(f"log_{name}")
         loggers[name] = logger
+
+    if meshcat is not None:
+        from drake_uuv.visualization import add_live_meshcat_visualizer
+
+        add_live_meshcat_visualizer(
+            builder,
+            meshcat,
+            np.asarray(scenario.sonar.baseline),
+            t,
+            uuv_state=uuv.GetOutputPort("state"),
+            R_WB=uuv.GetOutputPort("R_WB"),
+            target_state=target.GetOutputPort("state"),
+            x_hat=estimator.GetOutputPort("x_hat"),
+            P=estimator.GetOutputPort("P"),
+        ).set_name("meshcat_visualizer")
 
     diagram = builder.Build()
     diagram.set_name("uuv_closed_loop")

@@ -7,11 +7,13 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.common import RandomGenerator
+from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 
 from drake_uuv.diagram import UuvDiagram, make_uuv_diagram
 from drake_uuv.io import write_json_atomic, write_npz_atomic
 from drake_uuv.metrics import run_metrics
+from drake_uuv.monitor import EstimatorHealthMonitor, SimulationFailure
 from drake_uuv.scenario import Scenario
 
 
@@ -66,29 +68,58 @@ def log_from_loggers(built: UuvDiagram, context, scenario: Scenario) -> dict[str
     }
 
 
+def _monitor_message(error: RuntimeError) -> str:
+    """The monitor's own message out of the Simulator's wrapping text."""
+    text = " ".join(str(error).split())
+    marker = "with message: "
+    return text.split(marker, 1)[1].rstrip(".").strip('"') if marker in text else text
+
+
 class ClosedLoopSimulation:
     """A built closed-loop diagram that runs any number of seeded runs.
 
     Building the diagram once and creating a fresh context per run is what Monte Carlo studies
     want: only the seed changes between runs, and the same seed gives a bit-identical log.
+
+    Every run is watched by an :class:`~drake_uuv.monitor.EstimatorHealthMonitor`: an estimator
+    whose covariance stops being symmetric positive definite, or whose innovations blow up,
+    stops the run with a :class:`~drake_uuv.monitor.SimulationFailure` naming the check and
+    the step, instead of filling the log with NaNs.
+
+    With ``meshcat``, a live visualiser draws the scene while it simulates (see
+    :func:`~drake_uuv.visualization.add_live_meshcat_visualizer`).
     """
 
-    def __init__(self, scenario: Scenario) -> None:
+    def __init__(self, scenario: Scenario, meshcat: Meshcat | None = None) -> None:
         self.scenario = scenario
-        self.built = make_uuv_diagram(scenario)
+        self.built = make_uuv_diagram(scenario, meshcat=meshcat)
         self.diagram = self.built.diagram
+        self.monitor = EstimatorHealthMonitor(self.built.systems["estimator"], scenario.time_step)
 
-    def run(self, seed: int | None = None) -> SimulationResult:
-        """One run with ``seed`` (default: the scenario's ``random_seed``)."""
+    def run(self, seed: int | None = None, realtime_rate: float = 0.0) -> SimulationResult:
+        """One run with ``seed`` (default: the scenario's ``random_seed``).
+
+        ``realtime_rate`` > 0 paces the simulation (for a live Meshcat view).
+        """
         start = time.perf_counter()
         scenario = self.scenario
         if seed is not None and seed != scenario.random_seed:
             scenario = dataclasses.replace(scenario, random_seed=seed)
         simulator = Simulator(self.diagram)
+        simulator.set_target_realtime_rate(realtime_rate)
         context = simulator.get_mutable_context()
         self.diagram.SetRandomContext(context, RandomGenerator(scenario.random_seed))
+        self.monitor.reset()
+        simulator.set_monitor(self.monitor)
         simulator.Initialize()
-        simulator.AdvanceTo((scenario.steps - 1) * scenario.time_step)
+        try:
+            simulator.AdvanceTo((scenario.steps - 1) * scenario.time_step)
+        except RuntimeError as e:
+            if "estimator" not in str(e):
+                raise
+            raise SimulationFailure(
+                f"seed {scenario.random_seed}: run stopped: {_monitor_message(e)}"
+            ) from e
         log = log_from_loggers(self.built, context, scenario)
         metrics = run_metrics(log, scenario)
         metrics.update(

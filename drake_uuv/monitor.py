@@ -1,0 +1,84 @@
+"""A Simulator monitor that stops a run whose estimator has broken down, saying which and when."""
+
+import math
+from collections import deque
+
+import numpy as np
+from pydrake.systems.framework import Context, EventStatus, LeafSystem
+
+
+class SimulationFailure(RuntimeError):
+    """A run stopped by the monitor; the message names the check, the step and the value."""
+
+
+class EstimatorHealthMonitor:
+    """Checks the estimator's outputs after every step (``Simulator.set_monitor``).
+
+    It fails the run, rather than let NaNs or a meaningless estimate flow into the log, when:
+
+    - ``x_hat`` or ``P`` is not finite;
+    - ``P`` is not symmetric (relative asymmetry above ``symmetry_tolerance``) or not
+      positive definite (its Cholesky factorisation fails);
+    - the innovations blow up: the mean NIS of the last ``nis_window`` updates exceeds
+      ``nis_limit`` times its expectation (a consistent filter's mean NIS is about 1 per
+      measurement dimension; the limit is far beyond any consistent run).
+    """
+
+    def __init__(
+        self,
+        estimator: LeafSystem,
+        time_step: float,
+        nis_window: int = 20,
+        nis_limit: float = 100.0,
+        symmetry_tolerance: float = 1e-9,
+    ) -> None:
+        self._estimator = estimator
+        self._time_step = time_step
+        self._x_hat = estimator.GetOutputPort("x_hat")
+        self._P = estimator.GetOutputPort("P")
+        self._nis = estimator.GetOutputPort("nis")
+        self._recent_nis: deque[float] = deque(maxlen=nis_window)
+        self._nis_limit = nis_limit
+        self._symmetry_tolerance = symmetry_tolerance
+
+    def reset(self) -> None:
+        """Forgets the NIS history (call before each run)."""
+        self._recent_nis.clear()
+
+    def problem(self, context: Context) -> str | None:
+        """A one-line description of what is wrong with the estimator, or None."""
+        x_hat = self._x_hat.Eval(context)
+        P = self._P.Eval(context).reshape(6, 6)
+        if not (np.all(np.isfinite(x_hat)) and np.all(np.isfinite(P))):
+            return f"estimator output is not finite: x_hat={np.array2string(x_hat, precision=3)}"
+        scale = max(float(np.max(np.abs(P))), 1e-300)
+        asymmetry = float(np.max(np.abs(P - P.T))) / scale
+        if asymmetry > self._symmetry_tolerance:
+            return f"estimator covariance P is not symmetric (relative asymmetry {asymmetry:.2e})"
+        try:
+            np.linalg.cholesky(P)
+        except np.linalg.LinAlgError:
+            smallest = float(np.linalg.eigvalsh(0.5 * (P + P.T))[0])
+            return f"estimator covariance P is not positive definite (eigenvalue {smallest:.3e})"
+        nis = float(self._nis.Eval(context)[0])
+        if math.isfinite(nis):
+            self._recent_nis.append(nis)
+            if len(self._recent_nis) == self._recent_nis.maxlen:
+                mean = sum(self._recent_nis) / len(self._recent_nis)
+                if mean > self._nis_limit:
+                    return (
+                        f"estimator innovations blew up: mean NIS {mean:.3g} over the last "
+                        f"{len(self._recent_nis)} updates (a consistent filter gives about 1)"
+                    )
+        return None
+
+    def __call__(self, root_context: Context) -> EventStatus:
+        context = self._estimator.GetMyContextFromRoot(root_context)
+        problem = self.problem(context)
+        if problem is None:
+            return EventStatus.Succeeded()
+        k = round(root_context.get_time() / self._time_step)
+        # No system pointer: pydrake crashes formatting a Python system's name into the error.
+        return EventStatus.Failed(
+            None, f"{problem} at step k={k} (t={root_context.get_time():g} s)"
+        )
