@@ -26,8 +26,8 @@ import numpy as np
 from drake_uuv.estimators.filters_math import (
     HandoverPolicy,
     RawRangeFilter,
-    linear_kf_update,
     predict,
+    range_difference_update,
 )
 from drake_uuv.estimators.pcrlb import (
     bound_rmse,
@@ -166,7 +166,7 @@ def simulate(
             Y, m, Gamma = range_difference_measurement(
                 first, s.eta, squared_ranges=(samples**2).mean(axis=1)
             )
-            x_hat, P, nis = linear_kf_update(x_hat, P, Y, m, Gamma, q_s)
+            x_hat, P, nis = range_difference_update(x_hat, P, Y, m, Gamma, q_s)
         else:
             raw.update(samples.reshape(-1), q_s)
             x_hat, P, nis = raw.x, raw.P, raw.nis

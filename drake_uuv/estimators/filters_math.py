@@ -3,10 +3,12 @@
 One implementation shared by every estimator LeafSystem:
 
 * :func:`predict` — the time update ``x⁺ = A x + B a_W``, ``P⁺ = A P Aᵀ + Q``.
-* :func:`linear_kf_update` — the paper's KF update on ``Y = ½(d1² − d2²) = q_sᵀ q + v̄``
-  (eq. 9), Joseph form.
-* :func:`ekf_update` — EKF update on both raw ranges (sample means of all f samples),
-  Joseph form.
+* :func:`range_difference_update` — the paper's KF update on ``Y = ½(d1² − d2²) = q_sᵀ q + v̄``
+  (eq. 9), Joseph form. The one implementation: the paper's KF LeafSystem
+  (:mod:`~drake_uuv.estimators.kalman_filter`, which re-exports it), the raw-range filters'
+  linear start and the numpy reference all call it.
+* :func:`ekf_update` — EKF update on both raw ranges (sample means of all f samples), or on
+  the one that returned, Joseph form.
 * :func:`iekf_update` — iterated EKF: Gauss–Newton on the MAP cost with a backtracking
   step limit, Joseph form at the final iterate.
 * :func:`raw_range_update` with :class:`HandoverPolicy` — the robust start of a raw-range
@@ -44,7 +46,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from drake_uuv.estimators.range_model import (
-    linear_measurement_matrix,
     mean_ranges,
     range_difference_measurement,
     range_jacobian,
@@ -78,44 +79,61 @@ def predict(
     return x_next, P_next
 
 
-def linear_kf_update(
-    x_pred: np.ndarray,
-    P_pred: np.ndarray,
-    Y: float,
-    m: float,
-    Gamma: float,
-    q_s: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """The paper's KF measurement update (eq. 9) on ``Y = q_sᵀ q + v̄``, Joseph form.
+_I6 = np.eye(6)
 
-    ``C = [q_sᵀ, 0]``, ``K = P Cᵀ (C P Cᵀ + Γ)⁻¹``, ``x = x_pred + K (Y − C x_pred − m)``,
-    ``P = (I − K C) P (I − K C)ᵀ + K Γ Kᵀ``. ``m`` and ``Γ`` are the mean and variance of
-    the noise ``v̄`` (see :func:`range_model.range_difference_measurement`). Returns
+
+def range_difference_update(
+    x_pred: np.ndarray, P_pred: np.ndarray, Y: float, m: float, Gamma: float, q_s: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """The paper's KF measurement update (eq. 9) on ``Y = q_sᵀ q + v̄``, ``E v̄ = m``, ``Var v̄ = Γ``.
+
+    ``C = [q_sᵀ, 0]``; ``K = P Cᵀ (C P Cᵀ + Γ)⁻¹``; ``Υ̂ = Υ̂⁻ + K (Y − C Υ̂⁻ − m)``; the
+    covariance in Joseph form ``(I − KC) P (I − KC)ᵀ + K Γ Kᵀ`` (symmetrised), which stays
+    symmetric positive definite under rounding. ``m`` and ``Γ`` are the mean and variance of
+    the noise ``v̄`` (:func:`drake_uuv.sensors.dual_sonar.range_difference_noise`). Returns
     ``(x, P, nis)`` with ``nis = ν²/S`` (χ²₁ when consistent).
     """
-    C = linear_measurement_matrix(q_s)
-    R = np.array([[float(Gamma)]])
-    nu = float(Y) - float(C[0] @ x_pred) - float(m)
-    PCt = P_pred @ C[0]
-    S = float(C[0] @ PCt) + float(Gamma)
-    K = (PCt / S)[:, None]
-    x = x_pred + K[:, 0] * nu
-    P = _joseph(P_pred, K, C, R)
-    return x, P, nu * nu / S
+    PCt = P_pred[:, :3] @ q_s
+    S = float(q_s @ PCt[:3]) + Gamma
+    K = PCt / S
+    innovation = Y - float(q_s @ x_pred[:3]) - m
+    I_KC = _I6.copy()
+    I_KC[:, :3] -= np.outer(K, q_s)
+    P = I_KC @ P_pred @ I_KC.T + Gamma * np.outer(K, K)
+    return x_pred + K * innovation, _symmetrise(P), innovation * innovation / S
+
+
+def _select(
+    z: np.ndarray, R: np.ndarray, sonars: tuple[int, ...] | np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The indices, measurements and noise covariance of the sonars used in an update."""
+    rows = np.asarray(sonars, dtype=int).reshape(-1)
+    if rows.size == 0 or not set(rows.tolist()) <= {0, 1}:
+        raise ValueError(f"sonars must be a non-empty subset of (0, 1), got {sonars!r}")
+    z = np.asarray(z, dtype=float).reshape(2)[rows]
+    return rows, z, np.asarray(R, dtype=float)[np.ix_(rows, rows)]
 
 
 def ekf_update(
-    x_pred: np.ndarray, P_pred: np.ndarray, z: np.ndarray, q_s: np.ndarray, R: np.ndarray
+    x_pred: np.ndarray,
+    P_pred: np.ndarray,
+    z: np.ndarray,
+    q_s: np.ndarray,
+    R: np.ndarray,
+    sonars: tuple[int, ...] | np.ndarray = (0, 1),
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """EKF update on the two raw ranges, Joseph form.
+    """EKF update on the raw ranges, Joseph form.
 
     ``z`` are the per-sonar sample means ``[mean_j d1^j, mean_j d2^j]`` and
     ``R = diag(η1/f, η2/f)`` their covariance. ``H`` is :func:`range_jacobian` at ``x_pred``.
-    Returns ``(x, P, nis)`` with ``nis = νᵀ S⁻¹ ν`` (χ²₂ when consistent).
+    ``sonars`` selects the ranges used (``(0,)`` or ``(1,)`` when only one sonar returned; the
+    other entry of ``z`` is then ignored and may be NaN).
+    Returns ``(x, P, nis)`` with ``nis = νᵀ S⁻¹ ν`` (χ² with ``len(sonars)`` degrees of
+    freedom when consistent).
     """
-    z = np.asarray(z, dtype=float).reshape(2)
-    H = range_jacobian(x_pred, q_s)
-    nu = z - range_measurement(x_pred, q_s)
+    rows, z, R = _select(z, R, sonars)
+    H = range_jacobian(x_pred, q_s)[rows]
+    nu = z - range_measurement(x_pred, q_s)[rows]
     S = H @ P_pred @ H.T + R
     K = np.linalg.solve(S, H @ P_pred).T  # P Hᵀ S⁻¹ (S, P symmetric)
     x = x_pred + K @ nu
@@ -132,6 +150,7 @@ def iekf_update(
     max_iterations: int = 5,
     tolerance: float = 1e-8,
     max_halvings: int = 8,
+    sonars: tuple[int, ...] | np.ndarray = (0, 1),
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Iterated EKF update: Gauss–Newton on the MAP cost, with a backtracking step limit.
 
@@ -142,30 +161,36 @@ def iekf_update(
     ``tolerance`` (in the ``P⁻¹`` norm). The covariance is the Joseph form with the gain and
     Jacobian at the final iterate. With one iteration and a full step its estimate and NIS
     are those of :func:`ekf_update` (the covariance then uses the Jacobian at the updated
-    estimate rather than at the prediction).
+    estimate rather than at the prediction). ``sonars`` selects the ranges, as there.
     Returns ``(x, P, nis)``; ``nis`` uses the prior innovation, as in :func:`ekf_update`.
     """
-    z = np.asarray(z, dtype=float).reshape(2)
+    rows, z, R = _select(z, R, sonars)
     L = np.linalg.cholesky(P_pred)
     R_inv = np.linalg.inv(R)
 
+    def h(x: np.ndarray) -> np.ndarray:
+        return range_measurement(x, q_s)[rows]
+
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        return range_jacobian(x, q_s)[rows]
+
     def cost(x: np.ndarray) -> float:
-        r = z - range_measurement(x, q_s)
+        r = z - h(x)
         e = np.linalg.solve(L, x - x_pred)
         return 0.5 * float(r @ R_inv @ r) + 0.5 * float(e @ e)
 
-    H0 = range_jacobian(x_pred, q_s)
-    nu0 = z - range_measurement(x_pred, q_s)
+    H0 = jacobian(x_pred)
+    nu0 = z - h(x_pred)
     S0 = H0 @ P_pred @ H0.T + R
     nis = float(nu0 @ np.linalg.solve(S0, nu0))
 
     x = np.array(x_pred, dtype=float)
     c = cost(x)
     for _ in range(max(int(max_iterations), 1)):
-        H = range_jacobian(x, q_s)
+        H = jacobian(x)
         S = H @ P_pred @ H.T + R
         K = np.linalg.solve(S, H @ P_pred).T
-        step = x_pred + K @ (z - range_measurement(x, q_s) - H @ (x_pred - x)) - x
+        step = x_pred + K @ (z - h(x) - H @ (x_pred - x)) - x
         scale = 1.0
         for _ in range(int(max_halvings) + 1):
             c_try = cost(x + scale * step)
@@ -178,7 +203,7 @@ def iekf_update(
         c = c_try
         if np.linalg.norm(np.linalg.solve(L, scale * step)) < tolerance:
             break
-    H = range_jacobian(x, q_s)
+    H = jacobian(x)
     S = H @ P_pred @ H.T + R
     K = np.linalg.solve(S, H @ P_pred).T
     return x, _joseph(P_pred, K, H, R), nis
@@ -238,7 +263,7 @@ def raw_range_update(
     ``range_samples`` holds the f samples of sonar 1, then the f of sonar 2. Both phases use
     the per-sonar sample means ``z`` (sufficient statistic, covariance ``diag(η/f)``):
 
-    * ``linear_phase=True``: :func:`linear_kf_update` on ``Y = ½(z1² − z2²)`` with the
+    * ``linear_phase=True``: :func:`range_difference_update` on ``Y = ½(z1² − z2²)`` with the
       derived moments for noise variance ``η/f`` (see the module docstring for why);
     * otherwise :func:`ekf_update` (``method="ekf"``) or :func:`iekf_update` (``"iekf"``).
 
@@ -251,7 +276,7 @@ def raw_range_update(
     R = range_noise_covariance(eta, samples_per_step)
     if linear_phase:
         Y, m, Gamma = range_difference_measurement(z, np.diag(R))
-        return linear_kf_update(x_pred, P_pred, Y, m, Gamma, q_s)
+        return range_difference_update(x_pred, P_pred, Y, m, Gamma, q_s)
     if method == "iekf":
         return iekf_update(x_pred, P_pred, z, q_s, R)
     return ekf_update(x_pred, P_pred, z, q_s, R)

@@ -4,9 +4,13 @@ import numpy as np
 from pydrake.systems.framework import Context
 
 from drake_uuv.estimators.base import MeasurementUpdate, RelativeStateEstimator
+
+# The update's one implementation lives with the other filter steps (pure numpy); it is
+# re-exported here for the benchmarks and the paper's-KF users.
+from drake_uuv.estimators.filters_math import range_difference_update
 from drake_uuv.sensors.dual_sonar import VALID
 
-_I6 = np.eye(6)
+__all__ = ["RangeDifferenceKalmanFilter", "kf_predict", "range_difference_update"]
 
 
 def kf_predict(
@@ -14,25 +18,6 @@ def kf_predict(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``Υ̂(k+1|k) = A Υ̂(k) + B a_W(k)``, ``P(k+1|k) = A P Aᵀ + Q`` with ``Q = B W Bᵀ``."""
     return A @ x + B @ a_W, A @ P @ A.T + Q
-
-
-def range_difference_update(
-    x_pred: np.ndarray, P_pred: np.ndarray, Y: float, m: float, Gamma: float, q_s: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """The scalar measurement update of ``Y = q_sᵀ q + v̄``, ``E v̄ = m``, ``Var v̄ = Γ``.
-
-    ``C = [q_sᵀ, 0]``; ``K = P Cᵀ (C P Cᵀ + Γ)⁻¹``; ``Υ̂ = Υ̂⁻ + K (Y − C Υ̂⁻ − m)``; the
-    covariance in Joseph form ``(I − KC) P (I − KC)ᵀ + K Γ Kᵀ``, which stays symmetric positive
-    definite under rounding. Also returns the NIS ``ν² / S``.
-    """
-    PCt = P_pred[:, :3] @ q_s
-    S = float(q_s @ PCt[:3]) + Gamma
-    K = PCt / S
-    innovation = Y - float(q_s @ x_pred[:3]) - m
-    I_KC = _I6.copy()
-    I_KC[:, :3] -= np.outer(K, q_s)
-    P = I_KC @ P_pred @ I_KC.T + Gamma * np.outer(K, K)
-    return x_pred + K * innovation, P, innovation * innovation / S
 
 
 class RangeDifferenceKalmanFilter(RelativeStateEstimator):

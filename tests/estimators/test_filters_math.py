@@ -8,8 +8,8 @@ from drake_uuv.estimators.filters_math import (
     RawRangeFilter,
     ekf_update,
     iekf_update,
-    linear_kf_update,
     predict,
+    range_difference_update,
     raw_range_update,
 )
 from drake_uuv.estimators.range_model import (
@@ -75,7 +75,7 @@ def test_joseph_covariances_are_symmetric_pd_and_shrink(seed):
     for _, P, nis in (
         ekf_update(x_pred, P_pred, z, q_s, R),
         iekf_update(x_pred, P_pred, z, q_s, R),
-        linear_kf_update(x_pred, P_pred, Y, m, Gamma, q_s),
+        range_difference_update(x_pred, P_pred, Y, m, Gamma, q_s),
     ):
         np.testing.assert_array_equal(P, P.T)
         assert np.linalg.eigvalsh(P).min() > 0.0
@@ -83,13 +83,13 @@ def test_joseph_covariances_are_symmetric_pd_and_shrink(seed):
         assert nis >= 0.0
 
 
-def test_linear_kf_update_matches_information_form():
+def test_range_difference_update_matches_information_form():
     rng = np.random.default_rng(3)
     P_pred = _random_spd(rng)
     x_pred = rng.normal(size=6)
     q_s = np.array([0.3, -1.2, 0.5])
     Y, m, Gamma = 0.7, 0.01, 0.05
-    x, P, nis = linear_kf_update(x_pred, P_pred, Y, m, Gamma, q_s)
+    x, P, nis = range_difference_update(x_pred, P_pred, Y, m, Gamma, q_s)
     C = np.concatenate([q_s, np.zeros(3)])[None, :]
     P_info = np.linalg.inv(np.linalg.inv(P_pred) + C.T @ C / Gamma)
     np.testing.assert_allclose(P, P_info, rtol=1e-10, atol=1e-12)
@@ -151,7 +151,9 @@ def test_raw_range_update_phases():
     z = samples.reshape(2, f).mean(axis=1)
     R = np.diag(eta / f)
     linear = raw_range_update(x_pred, P_pred, samples, q_s, eta, f, linear_phase=True)
-    expected = linear_kf_update(x_pred, P_pred, *range_difference_measurement(z, eta / f), q_s)
+    expected = range_difference_update(
+        x_pred, P_pred, *range_difference_measurement(z, eta / f), q_s
+    )
     for a, b in zip(linear, expected, strict=True):
         np.testing.assert_allclose(a, b)
     ekf = raw_range_update(x_pred, P_pred, samples, q_s, eta, f, linear_phase=False)
