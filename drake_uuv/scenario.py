@@ -12,6 +12,7 @@ Defaults are the paper's §IV numbers (design.md §1), so ``Scenario()`` is the 
 # No `from __future__ import annotations`: Drake's yaml loader needs the real field types.
 import dataclasses
 import math
+import re
 import types
 import typing
 from collections.abc import Iterable
@@ -26,13 +27,41 @@ from pydrake.common.yaml import yaml_load_typed
 
 NOISE_MODELS = ("derived", "paper_printed")
 ATTITUDE_MODES = ("fixed", "random", "trajectory")
-ESTIMATOR_TYPES = ("kf",)
+ESTIMATOR_TYPES = ("kf", "ekf", "iekf")
 TRACKING_TYPES = ("paper", "lqr")
 ALPHA_PROVEN_INTERVAL = (1.0 - 1.0 / math.sqrt(2.0), 1.0 + 1.0 / math.sqrt(2.0))
 
 
 class ScenarioError(ValueError):
-    """A scenario field has a bad value; the message names the field and the value."""
+    """A scenario field has a bad value; the message names the field and the value.
+
+    The message is always one line: control characters from user input are escaped.
+    """
+
+    def __init__(self, message: str) -> None:
+        super().__init__("".join(c if c.isprintable() else repr(c)[1:-1] for c in message))
+
+
+class _YamlLoader(yaml.SafeLoader):
+    """PyYAML's safe loader with YAML 1.2 floats: ``1e-3`` is a number, not a string."""
+
+
+_YamlLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+        |\.[0-9_]+(?:[eE][-+][0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+    list("-+0123456789."),
+)
+
+
+def _parse_yaml(text: str) -> Any:
+    return yaml.load(text, Loader=_YamlLoader)  # noqa: S506 (a SafeLoader subclass)
 
 
 def _identity(n: int) -> list[list[float]]:
@@ -98,6 +127,11 @@ class EstimatorConfig:
     initial_covariance: list[list[float]] = field(default_factory=lambda: _identity(6))
     # Reject a measurement whose NIS exceeds the χ² quantile of this probability; None: no gate.
     gate_probability: float | None = None
+    # ekf, iekf (filters on the raw ranges): they start as the paper's linear KF and hand over
+    # once trace(P_qq) ≤ linear_start_position_variance [m²], or after linear_start_max_steps
+    # linear updates (0: no linear start). See estimators/raw_range_filter.py.
+    linear_start_position_variance: float = 0.5
+    linear_start_max_steps: int = 100
 
 
 @dataclass
@@ -197,7 +231,7 @@ def load_scenario(
     """Loads, overrides (``dotted.key=value`` strings) and validates a scenario."""
     path = resolve_scenario_path(name_or_path)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = _parse_yaml(path.read_text())
     except yaml.YAMLError as e:
         raise ScenarioError(f"scenario file {str(path)!r}: not valid YAML ({_one_line(e)})") from e
     if data is None:
@@ -229,7 +263,7 @@ def apply_override(data: dict[str, Any], override: str) -> None:
     key, _, text = override.partition("=")
     key = key.strip()
     try:
-        value = yaml.safe_load(text)
+        value = _parse_yaml(text)
     except yaml.YAMLError as e:
         raise ScenarioError(f"{key}: value is not valid YAML, got {text!r}") from e
     schema: Any = Scenario
@@ -267,7 +301,7 @@ def _check_types(schema: Any, data: Any, prefix: str) -> None:
         raise ScenarioError(f"{prefix.rstrip('.') or 'scenario'}: must be a mapping, got {data!r}")
     hints = typing.get_type_hints(schema)
     for key, value in data.items():
-        name = f"{prefix}{key}"
+        name = f"{prefix}{key}" if str(key).isidentifier() else f"{prefix}{key!r}"
         if key not in hints:
             raise ScenarioError(f"{name}: unknown field (known: {', '.join(hints)})")
         _check_value(hints[key], value, name)
@@ -313,12 +347,23 @@ def _fail(name: str, requirement: str, value: Any) -> None:
     raise ScenarioError(f"{name}: {requirement}, got {value!r}")
 
 
+# Largest magnitude of any number in a scenario: far beyond any physical value in SI units,
+# far below where squares and products in the filter overflow.
+LIMIT = 1e6
+
+
+def _finite(name: str, array: np.ndarray, value: Any) -> None:
+    if not np.all(np.isfinite(array)):
+        _fail(name, "must be finite", value)
+    if np.any(np.abs(array) > LIMIT):
+        _fail(name, f"must be at most {LIMIT:g} in magnitude", value)
+
+
 def _vector(name: str, value: list[float], size: int) -> np.ndarray:
     array = np.asarray(value, dtype=float)
     if array.shape != (size,):
         _fail(name, f"must be a list of {size} numbers", value)
-    if not np.all(np.isfinite(array)):
-        _fail(name, "must be finite", value)
+    _finite(name, array, value)
     return array
 
 
@@ -326,14 +371,19 @@ def _matrix(name: str, value: list[list[float]], size: int) -> np.ndarray:
     if not all(isinstance(row, list) and len(row) == size for row in value) or len(value) != size:
         _fail(name, f"must be a {size}×{size} matrix (list of {size} lists of {size})", value)
     array = np.asarray(value, dtype=float)
-    if not np.all(np.isfinite(array)):
-        _fail(name, "must be finite", value)
+    _finite(name, array, value)
     return array
 
 
 def _positive(name: str, value: float, strict: bool = True) -> None:
     if not math.isfinite(value) or (value <= 0.0 if strict else value < 0.0):
         _fail(name, "must be > 0" if strict else "must be ≥ 0", value)
+    _finite(name, np.asarray(value), value)
+
+
+def _between(name: str, value: float, low: float, high: float) -> None:
+    if not (math.isfinite(value) and low <= value <= high):
+        _fail(name, f"must be in [{low:g}, {high:g}]", value)
 
 
 def _spd(name: str, value: list[list[float]], size: int) -> np.ndarray:
@@ -352,9 +402,9 @@ def _choice(name: str, value: str, options: tuple[str, ...]) -> None:
 
 def validate_scenario(s: Scenario) -> None:
     """Checks every field of a scenario; raises :class:`ScenarioError` on the first bad one."""
-    _positive("time_step", s.time_step)
-    if s.steps < 1:
-        _fail("steps", "must be ≥ 1", s.steps)
+    _between("time_step", s.time_step, 1e-4, 1e3)
+    if not 1 <= s.steps <= 10**8:
+        _fail("steps", "must be in [1, 1e8]", s.steps)
     if s.random_seed < 0 or s.random_seed >= 2**32:
         _fail("random_seed", "must be in [0, 2**32)", s.random_seed)
     if not 0 <= s.steady_state_start < s.steps:
@@ -369,13 +419,13 @@ def validate_scenario(s: Scenario) -> None:
     _spd("target.acceleration_covariance", s.target.acceleration_covariance, 3)
 
     baseline = _vector("sonar.baseline", s.sonar.baseline, 3)
-    if np.linalg.norm(baseline) < 1e-9:
-        _fail("sonar.baseline", "must be non-zero", s.sonar.baseline)
+    if np.linalg.norm(baseline) < 1e-3:
+        _fail("sonar.baseline", "must be non-zero (|b| ≥ 1 mm)", s.sonar.baseline)
     eta = _vector("sonar.noise_variances", s.sonar.noise_variances, 2)
-    if np.any(eta <= 0.0):
-        _fail("sonar.noise_variances", "must be > 0", s.sonar.noise_variances)
-    if s.sonar.samples_per_step < 1:
-        _fail("sonar.samples_per_step", "must be ≥ 1", s.sonar.samples_per_step)
+    if np.any(eta <= 1e-12):
+        _fail("sonar.noise_variances", "must be > 0 (at least 1e-12 m²)", s.sonar.noise_variances)
+    if not 1 <= s.sonar.samples_per_step <= 10_000:
+        _fail("sonar.samples_per_step", "must be in [1, 10000]", s.sonar.samples_per_step)
 
     if s.sonar.max_range is not None:
         _positive("sonar.max_range", s.sonar.max_range)
@@ -396,12 +446,15 @@ def validate_scenario(s: Scenario) -> None:
     gate = s.estimator.gate_probability
     if gate is not None and not (math.isfinite(gate) and 0.0 < gate < 1.0):
         _fail("estimator.gate_probability", "must be in (0, 1)", gate)
+    e = s.estimator
+    _positive("estimator.linear_start_position_variance", e.linear_start_position_variance)
+    if e.linear_start_max_steps < 0:
+        _fail("estimator.linear_start_max_steps", "must be ≥ 0", e.linear_start_max_steps)
 
     _choice("attitude.mode", s.attitude.mode, ATTITUDE_MODES)
     for name in ("rho", "h_amplitude", "h_frequency"):
         value = getattr(s.attitude, name)
-        if not math.isfinite(value):
-            _fail(f"attitude.{name}", "must be finite", value)
+        _finite(f"attitude.{name}", np.asarray(value), value)
     if s.attitude.max_angular_rate is not None:
         _positive("attitude.max_angular_rate", s.attitude.max_angular_rate)
 
@@ -423,5 +476,5 @@ def validate_scenario(s: Scenario) -> None:
     if s.tracking.max_acceleration is not None:
         _positive("tracking.max_acceleration", s.tracking.max_acceleration)
 
-    if s.analysis.pe_window < 1:
-        _fail("analysis.pe_window", "must be ≥ 1", s.analysis.pe_window)
+    if not 1 <= s.analysis.pe_window <= 10**6:
+        _fail("analysis.pe_window", "must be in [1, 1e6]", s.analysis.pe_window)

@@ -111,8 +111,8 @@ class ClosedLoopSimulation:
         self.diagram.SetRandomContext(context, RandomGenerator(scenario.random_seed))
         self.monitor.reset()
         simulator.set_monitor(self.monitor)
-        simulator.Initialize()
         try:
+            simulator.Initialize()
             simulator.AdvanceTo((scenario.steps - 1) * scenario.time_step)
         except RuntimeError as e:
             if "estimator" not in str(e):
