@@ -10,7 +10,8 @@ from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import LogVectorOutput, RandomSource, VectorLogSink
 
 from drake_uuv.controllers import AttitudeGenerator, LqrTrackingController, TrackingController
-from drake_uuv.estimators import RangeDifferenceKalmanFilter
+from drake_uuv.estimators import RangeDifferenceKalmanFilter, RawRangeEstimator
+from drake_uuv.estimators.filters_math import HandoverPolicy
 from drake_uuv.plants import TargetRandomWalk, UuvPlant
 from drake_uuv.primitives import NoiseHold
 from drake_uuv.scenario import Scenario
@@ -72,6 +73,22 @@ def make_estimator(scenario: Scenario) -> LeafSystem:
             np.asarray(e.initial_estimate),
             np.asarray(e.initial_covariance),
             e.gate_probability,
+        )
+    if e.type in ("ekf", "iekf"):
+        return RawRangeEstimator(
+            scenario.time_step,
+            np.asarray(scenario.target.acceleration_covariance),
+            np.asarray(e.initial_estimate),
+            np.asarray(e.initial_covariance),
+            np.asarray(scenario.sonar.noise_variances),
+            scenario.sonar.samples_per_step,
+            method=e.type,
+            noise_model=e.noise_model,
+            handover=HandoverPolicy(
+                position_variance_threshold=e.linear_start_position_variance,
+                max_linear_steps=e.linear_start_max_steps,
+            ),
+            gate_probability=e.gate_probability,
         )
     raise ValueError(f"estimator.type: unknown estimator, got {e.type!r}")
 

@@ -46,7 +46,8 @@ class FilteredEstimate:
 class RelativeStateEstimator(LeafSystem):
     """Base of the estimators of ``Υ = [q, ϑ]``; subclasses supply the measurement update.
 
-    Discrete state: the *predicted* ``Υ̂(k|k−1)`` (group 0) and ``P(k|k−1)`` (group 1). The
+    Discrete state: the *predicted* ``Υ̂(k|k−1)`` (group 0) and ``P(k|k−1)`` (group 1), and
+    any groups a subclass declares and advances in :meth:`advance_extra_state`. The
     filtered estimate of step k is a direct-feedthrough output of the measurement inputs only
     (never of ``a_W``), so the controller acts on ``Υ̂(k|k)`` in the same tick as in the
     paper, and the periodic update predicts ``Υ̂(k+1|k) = A Υ̂(k|k) + B a_W(k)``,
@@ -112,6 +113,17 @@ class RelativeStateEstimator(LeafSystem):
         """The posterior from this step's measurement, or None when there is none to use."""
         raise NotImplementedError
 
+    def advance_extra_state(
+        self, context: Context, filtered: FilteredEstimate, discrete_state: DiscreteValues
+    ) -> None:
+        """Hook for subclasses with discrete state of their own (groups after 0 and 1).
+
+        Called at the end of the periodic update, after the prediction, with this step's
+        filtered estimate (its ``status`` is VALID and its ``nis`` finite when an update was
+        applied); set the next values of the subclass's groups in ``discrete_state``. The
+        default does nothing (the paper's KF has no other state).
+        """
+
     def gate_threshold(self, dof: int) -> float:
         """The NIS above which an update is rejected (``inf`` without a gate)."""
         if self._gate_probability is None:
@@ -140,6 +152,7 @@ class RelativeStateEstimator(LeafSystem):
         discrete_state.set_value(self._x_index, self._A @ filtered.x + self._B @ a_W)
         P = self._A @ filtered.P @ self._A.T + self._Q
         discrete_state.set_value(self._P_index, P.ravel())
+        self.advance_extra_state(context, filtered, discrete_state)
 
     def _calc_x_hat(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._filtered.Eval(context).x)
