@@ -1,0 +1,279 @@
+"""Regenerates docs/results.md: the paper's figures, Monte Carlo statistics, the comparison
+tables, and a plain statement of which of the paper's claims reproduce.
+
+    python scripts/make_results_page.py                  # 100 runs per study (≈ 10 min, 2 cores)
+    python scripts/make_results_page.py --runs 20        # quicker, wider intervals
+    python scripts/make_results_page.py --resume         # reuse finished runs in --work
+
+Studies are kept in ``--work`` (default ``out/results``); figures go to ``docs/figures/``.
+Every sentence that states a number takes it from these runs.
+"""
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from drake_uuv.analysis.figures import (
+    error_figure,
+    excitation_eigenvalues,
+    excitation_figure,
+    nees_figure,
+    save_figure,
+    trajectory_figure,
+)
+from drake_uuv.compare import compare, markdown_table, selected_variants
+from drake_uuv.io import write_atomic, write_text_atomic
+from drake_uuv.metrics import errors
+from drake_uuv.montecarlo import Study, format_summary, run_study
+from drake_uuv.scenario import ALPHA_PROVEN_INTERVAL, load_scenario
+from drake_uuv.simulation import ClosedLoopSimulation
+
+ROOT = Path(__file__).resolve().parent.parent
+LONG_STEPS = 2000
+LONG_SEEDS = 8
+
+
+def _figures(docs: Path) -> dict[str, float]:
+    """The paper run's four figures, and the fixed/random contrast; returns a few numbers."""
+    folder = docs / "figures"
+    numbers: dict[str, float] = {}
+    for mode in ("trajectory", "random", "fixed"):
+        scenario = load_scenario("paper", [f"attitude.mode={mode}"])
+        log = ClosedLoopSimulation(scenario).run().log
+        figures = {
+            "errors": error_figure(log, scenario),
+            "excitation": excitation_figure(log, scenario),
+        }
+        if mode == "trajectory":
+            figures["trajectory"] = trajectory_figure(log, scenario)
+            figures["nees"] = nees_figure(log, scenario)
+            q_star = np.asarray(scenario.tracking.desired_relative_position)
+            kick = np.linalg.norm((log["R_WB"][:-1] - log["R_WB"][1:]) @ q_star, axis=1)
+            numbers["rotation_kick"] = float(np.mean(kick))
+            turn = np.linalg.norm(log["u2"], axis=1) * scenario.time_step
+            numbers["turn_mean_deg"] = float(np.degrees(np.mean(turn)))
+            numbers["turn_max_deg"] = float(np.degrees(np.max(turn)))
+        for stem, figure in figures.items():
+            save_figure(figure, folder / f"{mode}_{stem}", formats=("png",))
+        low, _ = excitation_eigenvalues(log["q_s"], scenario.analysis.pe_window)
+        numbers[f"{mode}_lambda_min"] = float(np.min(low))
+    return numbers
+
+
+def _relative_speed_growth() -> list[tuple[int, float]]:
+    """RMS relative speed |v − v̄| at a few k over long runs of the paper scenario."""
+    scenario = load_scenario("paper", [f"steps={LONG_STEPS}"])
+    simulation = ClosedLoopSimulation(scenario)
+    speeds = []
+    for seed in range(LONG_SEEDS):
+        result = simulation.run(seed)
+        speeds.append(np.linalg.norm(errors(result.log, scenario)["relative_velocity"], axis=1))
+    speeds = np.asarray(speeds)
+    ks = [50, 200, 500, 1000, LONG_STEPS - 1]
+    return [(k, float(np.sqrt(np.mean(speeds[:, k] ** 2)))) for k in ks]
+
+
+def _g(value: float | None, fmt: str = ".3g") -> str:
+    return "—" if value is None else format(value, fmt)
+
+
+def _ci(summary: dict, key: str, fmt: str = ".3g") -> str:
+    low, high = summary[f"{key}_ci95"]
+    return f"{_g(summary[key], fmt)} (95 % interval {_g(low, fmt)}–{_g(high, fmt)})"
+
+
+def _verdict(ok: bool) -> str:
+    return "**Reproduces.**" if ok else "**Does not reproduce.**"
+
+
+def _claims(rows: dict[str, dict], runs: int, numbers: dict, speeds) -> str:
+    fixed, trajectory = rows["fixed-derived"], rows["trajectory-derived"]
+    random = rows["random-derived"]
+    printed = rows["trajectory-paper_printed"]
+    alphas = {
+        float(name.removeprefix("alpha-")): summary
+        for name, summary in rows.items()
+        if name.startswith("alpha-")
+    }
+    bounded = [a for a, s in sorted(alphas.items()) if s["tracking_bounded_fraction"] == 1.0]
+    unbounded = [a for a, s in sorted(alphas.items()) if s["tracking_bounded_fraction"] < 1.0]
+    low, high = ALPHA_PROVEN_INTERVAL
+    outside_ok = [a for a in bounded if not low < a < high]
+    best = min(bounded, key=lambda a: alphas[a]["tracking_rmse"]) if bounded else math.nan
+    excitation_ok = (
+        fixed["diverged_fraction"] > 0.5
+        and trajectory["diverged_fraction"] == 0.0
+        and random["diverged_fraction"] == 0.0
+    )
+    tracking_ok = random["tracking_rmse_ci95"][0] > trajectory["tracking_rmse_ci95"][1]
+    nees_ok = abs(printed["nees_mean"] - 6) > abs(trajectory["nees_mean"] - 6)
+    a12 = alphas.get(1.2, trajectory)
+    printed_effect = (
+        "overstates the noise, so the filter is under-confident (P too large)"
+        if printed["nees_mean"] < 6
+        else "understates the noise, so the filter is over-confident (P too small)"
+    )
+    noise_heading = (
+        "the derived model is consistent, the paper's printed one is not"
+        if nees_ok
+        else "no measurable difference in consistency"
+    )
+    return f"""## What reproduces and what does not
+
+Numbers from {runs} seeded runs per variant, 500 steps, steady state k ≥ 200, unless stated.
+
+### 1. Attitude excitation makes the relative state observable — {_verdict(excitation_ok)}
+
+With a fixed attitude the baseline q_s never turns, Σ q_s q_sᵀ has rank 1 (smallest
+eigenvalue over any 24-step window: {numbers["fixed_lambda_min"]:.2g} m²) and the range difference
+says nothing about two of the three directions: {fixed["diverged_fraction"]:.0%} of runs end with a
+position error above 10 m, and the position RMSE is {_ci(fixed, "position_rmse")} m. Algorithm 2
+(`trajectory`) keeps the smallest windowed eigenvalue at {numbers["trajectory_lambda_min"]:.3g} m²
+and Algorithm 1 (`random`) at {numbers["random_lambda_min"]:.3g} m²; neither diverges
+({trajectory["diverged_fraction"]:.0%} and {random["diverged_fraction"]:.0%} of runs), with position
+RMSEs of {_ci(trajectory, "position_rmse")} m and {_ci(random, "position_rmse")} m.
+
+![persistent excitation, trajectory](figures/trajectory_excitation.png)
+![persistent excitation, fixed](figures/fixed_excitation.png)
+
+### 2. Algorithm 2 tracks better than Algorithm 1 — {_verdict(tracking_ok)}
+
+The paper prefers Algorithm 2 because Algorithm 1's large attitude jumps disturb tracking.
+Tracking RMSE: `random` {_ci(random, "tracking_rmse")} m against `trajectory`
+{_ci(trajectory, "tracking_rmse")} m. The estimation error is about the same
+({_g(random["position_rmse"])} m against {_g(trajectory["position_rmse"])} m): the difference is
+the term (R(k) − R(k+1)) q* of the tracking-error dynamics, since q* is fixed in the body frame
+and every rotation moves the desired point. Under Algorithm 2 that term still averages
+{numbers["rotation_kick"]:.2f} m per step, which is why the tracking error does not settle near
+zero as the paper's Fig. "error" suggests: it stays around {_g(trajectory["tracking_rmse"])} m RMS,
+with spikes of several metres where the attitude turns fast. Algorithm 2 turns the body by
+{numbers["turn_mean_deg"]:.0f}° per step on average but up to {numbers["turn_max_deg"]:.0f}°: the
+minimal rotation taking b to ζ(k) jumps when ζ passes near −b.
+
+### 3. The noise model of Y — {noise_heading}
+
+A consistent filter has a mean NEES of 6 (6-D state). With the mean and variance derived in
+design.md §1 (`derived`) the mean NEES is {_ci(trajectory, "nees_mean")}; with the formula the
+paper prints (`paper_printed`) it is {_ci(printed, "nees_mean")}: the printed Γ {printed_effect}
+(its mean m = η1 + η2 is also a small bias where the derived mean ½(η1 − η2) is 0 here). Its
+position RMSE is {_g(printed["position_rmse"])} m against {_g(trajectory["position_rmse"])} m.
+The paper's qualitative results survive either model; its printed formula does not follow from
+its own Y = ½(d1² − d2²).
+
+### 4. The tracking law bounds the sampled position, not the relative velocity
+
+Substituting u1 into the model gives
+
+    q(k+1) = q(k) − α (q̂(k) − R(k) q*) − t (ϑ̂(k) − ϑ(k)) − ½ t² ū(k)
+    ϑ(k+1) = −ϑ(k) + 2 (ϑ(k) − ϑ̂(k)) − (2α/t) (q̂(k) − R(k) q*) − t ū(k)
+
+The position is a dead-beat-like contraction (the paper's bound on e(k) holds), but the relative
+velocity has eigenvalue −1: nothing damps it, it flips sign every step and is driven by the
+tracking and estimation errors. Over the paper's run the mean relative speed is
+{_g(trajectory["relative_speed_mean"])} m/s (peak {_g(trajectory["relative_speed_peak"])} m/s over
+all runs) and the mean commanded acceleration {_g(trajectory["acceleration_mean"])} m/s², for a
+target moving at about 0.1 m/s. It grows with the run length: RMS relative speed over
+{LONG_SEEDS} runs of {LONG_STEPS} steps:
+
+| k | {" | ".join(str(k) for k, _ in speeds)} |
+|---|{"|".join("---:" for _ in speeds)}|
+| RMS |v − v̄| [m/s] | {" | ".join(f"{s:.0f}" for _, s in speeds)} |
+
+and with α (mean relative speed {_g(alphas[min(alphas)]["relative_speed_mean"])} m/s at
+α = {min(alphas):g}, {_g(a12["relative_speed_mean"])} m/s at α = 1.2). The samples of the UUV
+position follow the target, but between samples the vehicle would have to move at these speeds:
+the law is not physically meaningful as it stands. A law that also regulates the relative
+velocity (LQR on the double integrator, issue 6) removes this.
+
+### 5. The α interval — sufficient, not necessary
+
+The paper proves bounded tracking for α in ({low:.4f}, {high:.4f}). In the sweep the tracking error
+stays bounded in every run for α ∈ {{{", ".join(f"{a:g}" for a in bounded)}}}, including
+{", ".join(f"{a:g}" for a in outside_ok) or "none"} outside the proven interval, and not for
+α ∈ {{{", ".join(f"{a:g}" for a in unbounded)}}}. With perfect estimates e(k+1) = (1 − α) e(k) + …,
+bounded exactly for 0 < α < 2: the paper's condition 2(1 − α)² < 1 comes from a loose
+inequality. Among the swept values the tracking RMSE is smallest at α = {best:g}
+({_g(alphas[best]["tracking_rmse"]) if bounded else "—"} m); the relative speed, though, rises
+steeply with α (section 4).
+"""
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=100, help="runs per study (default: 100)")
+    parser.add_argument("--workers", type=int, default=None, help="local processes")
+    parser.add_argument("--work", type=Path, default=ROOT / "out" / "results")
+    parser.add_argument("--docs", type=Path, default=ROOT / "docs")
+    parser.add_argument("--resume", action="store_true", help="reuse finished runs in --work")
+    args = parser.parse_args()
+    execution = dict(workers=args.workers, resume=args.resume)
+
+    (args.docs / "figures").mkdir(parents=True, exist_ok=True)
+    numbers = _figures(args.docs)
+    paper = load_scenario("paper")
+    study = Study("paper", paper, args.runs, args.work / "montecarlo")
+    result = run_study(study, **execution)
+    bands = (args.work / "montecarlo" / "figures" / "bands.png").read_bytes()
+    write_atomic(args.docs / "figures" / "bands.png", lambda f: f.write(bands))
+    compared = compare(selected_variants(None), args.work / "compare", args.runs, **execution)
+    rows = {variant.name: r.summary for variant, r in compared}
+    table = markdown_table([(variant, r.summary) for variant, r in compared])
+    speeds = _relative_speed_growth()
+    summary = result.summary
+
+    page = f"""# Results: what reproduces of the paper
+
+Regenerate with `python scripts/make_results_page.py --runs {args.runs}` (this page, its figures
+in `docs/figures/`, the studies in `out/results/`). The single-run figures come from
+`drake-uuv run` (paper scenario, seed 0), the statistics from
+`drake-uuv montecarlo --runs {args.runs}` and `drake-uuv compare --runs {args.runs}`.
+
+## The paper's figures (one run, seed 0)
+
+Estimation error (red) and tracking error (blue), with the paper's zoom on k = 200..250:
+
+![errors](figures/trajectory_errors.png)
+
+Target (red line, triangles), UUV (grey), sonar s1 (blue stars) and s2 (green stars), and the
+UUV's attitude frames step by step:
+
+![trajectory](figures/trajectory_trajectory.png)
+
+NEES against k with the χ²(6) 95 % band:
+
+![nees](figures/trajectory_nees.png)
+
+For contrast, Algorithm 1 (`random`) and a fixed attitude:
+
+![errors, random](figures/random_errors.png)
+![errors, fixed](figures/fixed_errors.png)
+
+## Monte Carlo: the paper scenario over {args.runs} runs
+
+```
+{format_summary(summary)}
+```
+
+RMSEs are √(mean over runs and steady-state steps of the squared error); intervals by
+percentile bootstrap over runs; fractions with Wilson intervals
+(`{args.work.name}/montecarlo/summary.json`).
+
+![bands](figures/bands.png)
+
+{_claims(rows, args.runs, numbers, speeds)}
+## Comparison tables
+
+{table}
+"""
+    write_text_atomic(args.docs / "results.md", page)
+    print(f"wrote {args.docs / 'results.md'}")
+    print(json.dumps({k: v for k, v in summary.items() if not isinstance(v, str)}, indent=1))
+    if not math.isfinite(summary["position_rmse"] or math.nan):
+        raise SystemExit("the paper scenario's position RMSE is not finite")
+
+
+if __name__ == "__main__":
+    main()
