@@ -5,7 +5,7 @@ import pytest
 from numpy.testing import assert_allclose
 from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Adder, ConstantVectorSource, LogVectorOutput
 
 from drake_uuv.controllers import AttitudeGenerator, LqrTrackingController, TrackingController
@@ -167,7 +167,11 @@ def test_acceleration_limit_keeps_the_direction() -> None:
 
 
 def run_with_perfect_knowledge(
-    controller, steps: int, rho: float = 1 / 24, h_amplitude: float = 0.5, h_frequency=1 / 6
+    controller: LeafSystem,
+    steps: int,
+    rho: float = 1 / 24,
+    h_amplitude: float = 0.5,
+    h_frequency: float = 1 / 6,
 ) -> dict[str, np.ndarray]:
     """Vehicle, Algorithm 2 and ``controller`` fed the true relative state (a still target).
 
