@@ -18,7 +18,13 @@ Outputs of a study folder ``DIR``:
 * ``runs.csv``: one row per run, ``seed`` then every metric of :func:`run_seeds`;
 * ``summary.json``: see :func:`summarize`;
 * ``figures/bands.{png,svg}``: median and 5–95 % of the errors against k, mean NEES with
-  its χ² band.
+  its χ² band, and the RMS error over runs beside the Monte Carlo PCRLB.
+
+The Monte Carlo PCRLB averages each run's measurement information ``M(k)`` over runs
+(:func:`drake_uuv.estimators.pcrlb.pcrlb_monte_carlo`). A chunk returns the *sum* over its
+runs of ``M(k)`` (position block, N×3×3), not per-run arrays, in fixed point (integers,
+:func:`information_exponent`): integer sums are exact, so the total, and the bound, are the
+same whatever the chunking, the order or the number of workers.
 """
 
 import argparse
@@ -53,6 +59,15 @@ INTERVAL_METHOD = (
     "95 % intervals: RMSEs and nees_mean by percentile bootstrap over runs "
     f"({BOOTSTRAP_RESAMPLES} resamples, generator seed {BOOTSTRAP_SEED}; the RMSE of each "
     "resample combines the per-run mean-square errors); fractions by the Wilson score interval"
+)
+BOUND_METHOD = (
+    "pcrlb: posterior Cramér–Rao bound of the raw two-range measurement (all f samples), "
+    "measurement information averaged over the runs' true trajectories, one recursion from "
+    "P(0|−1) = estimator.initial_covariance (the proven bound); pcrlb_per_run: root of the "
+    "mean over runs of each run's bound along its own trajectory (what a run-by-run "
+    "efficient estimator attains; above pcrlb, see estimators/pcrlb.py); kf_riccati: the "
+    "paper's KF's Riccati covariance with Γ on the true ranges, likewise; each √(mean over "
+    "k ≥ steady_state_start of the trace of the position or velocity block)"
 )
 _SCHEMA = 1
 _PR_SET_PDEATHSIG = 1  # <sys/prctl.h>
@@ -115,20 +130,37 @@ def _simulation(scenario: Scenario):
     return cache[key]
 
 
+def information_exponent(scenario: Scenario) -> int:
+    """Binary exponent ``e`` of the fixed-point information sums: ``round(M · 2^e)`` as int64.
+
+    Every entry of ``M(k)`` is at most ``f (1/η1 + 1/η2)`` in magnitude; ``e`` leaves room for
+    2^20 runs below 2^63, so one unit is ≈ 2^-42 of the largest entry (relative rounding far
+    below anything the bound is used for).
+    """
+    eta = np.asarray(scenario.sonar.noise_variances, dtype=float)
+    largest = scenario.sonar.samples_per_step * float(np.sum(1.0 / eta))
+    return 62 - 20 - math.ceil(math.log2(largest))
+
+
 def run_seeds(scenario: Scenario, seeds: Sequence[int]) -> dict[str, Any]:
     """Runs ``scenario`` once per seed; returns metrics and error norms, not logs.
 
     Returns ``{"seeds": int64 (n,), "metric_names": [...], "metrics": float64 (n × m),
-    "norms": float32 (n × 4 × steps)}``. The metrics are those of
-    :func:`drake_uuv.metrics.run_metrics` plus ``max_tracking_error`` (steady state) and
-    ``final_tracking_error``; ``wall_time_s`` is left out so results are reproducible.
+    "norms": float32 (n × 4 × steps), "information_sum": int64 (steps × 3 × 3) or None}``.
+    The metrics are those of :func:`drake_uuv.metrics.run_metrics` plus ``max_tracking_error``
+    (steady state) and ``final_tracking_error``; ``wall_time_s`` is left out so results are
+    reproducible. ``information_sum`` is Σ over the runs of the position block of
+    :func:`drake_uuv.metrics.run_information` in units of ``2^-e``
+    (:func:`information_exponent`); None if any entry is not finite.
     """
-    from drake_uuv.metrics import errors
+    from drake_uuv.metrics import errors, run_information
 
     simulation = _simulation(scenario)
     start = scenario.steady_state_start
     rows, norms = [], []
     names: list[str] = []
+    exponent = information_exponent(scenario)
+    information: np.ndarray | None = np.zeros((scenario.steps, 3, 3), dtype=np.int64)
     with np.errstate(all="ignore"):
         for seed in seeds:
             try:
@@ -156,11 +188,17 @@ def run_seeds(scenario: Scenario, seeds: Sequence[int]) -> dict[str, Any]:
                     ]
                 ).astype(np.float32)
             )
+            M = run_information(result.log, result.scenario)[:, :3, :3]
+            if information is not None and np.all(np.isfinite(M)):
+                information += np.rint(np.ldexp(M, exponent)).astype(np.int64)
+            else:
+                information = None
     return {
         "seeds": np.asarray(seeds, dtype=np.int64),
         "metric_names": names,
         "metrics": np.asarray(rows, dtype=float),
         "norms": np.asarray(norms, dtype=np.float32),
+        "information_sum": information,
     }
 
 
@@ -185,6 +223,8 @@ def _write_part(out_dir: Path, chunk: dict[str, Any]) -> Path:
         "metrics": chunk["metrics"],
         "norms": chunk["norms"],
     }
+    if chunk.get("information_sum") is not None:
+        arrays["information_sum"] = chunk["information_sum"]
     return write_atomic(path, lambda f: np.savez(f, **arrays))
 
 
@@ -196,6 +236,9 @@ def _read_parts(out_dir: Path) -> Iterator[dict[str, Any]]:
                 "metric_names": [str(n) for n in data["metric_names"]],
                 "metrics": data["metrics"],
                 "norms": data["norms"],
+                "information_sum": data["information_sum"]
+                if "information_sum" in data.files
+                else None,
             }
 
 
@@ -428,13 +471,96 @@ def load_runs(study: Study) -> tuple[np.ndarray, list[str], np.ndarray, np.ndarr
     return seeds, names, metrics, norms
 
 
+def load_information(study: Study) -> np.ndarray | None:
+    """Σ over the study's runs of the measurement information ``M(k)`` (steps × 6 × 6).
+
+    None when it cannot be had exactly: a part without it (written before it existed, or
+    with a non-finite run) or a part that also holds runs outside the study (after a
+    ``--resume`` with fewer runs).
+    """
+    wanted = {study.scenario.random_seed + i for i in range(study.runs)}
+    total: np.ndarray | None = None
+    seen: set[int] = set()
+    for part in _read_parts(study.out_dir):
+        seeds = {int(seed) for seed in part["seeds"]}
+        if not seeds & wanted:
+            continue
+        if part["information_sum"] is None or not seeds <= wanted or seeds & seen:
+            return None
+        seen |= seeds
+        total = part["information_sum"] if total is None else total + part["information_sum"]
+    if total is None or seen != wanted:
+        return None
+    information = np.zeros((total.shape[0], 6, 6))
+    information[:, :3, :3] = np.ldexp(total.astype(float), -information_exponent(study.scenario))
+    return information
+
+
+def monte_carlo_bound(information_sum: np.ndarray, runs: int, scenario: Scenario) -> np.ndarray:
+    """The Monte Carlo PCRLB (steps × 6 × 6) from :func:`load_information`'s sum: the
+    recursion once on the information averaged over runs, prior ``estimator.initial_covariance``.
+    """
+    from drake_uuv.estimators.pcrlb import pcrlb_recursion
+
+    return pcrlb_recursion(
+        information_sum / runs,
+        np.asarray(scenario.estimator.initial_covariance, dtype=float),
+        np.asarray(scenario.target.acceleration_covariance, dtype=float),
+        scenario.time_step,
+    )
+
+
+def bound_summary(
+    summary: dict[str, Any],
+    column: dict[str, np.ndarray],
+    scenario: Scenario,
+    information_sum: np.ndarray | None,
+) -> dict[str, Any]:
+    """The bounds of a study and the RMSEs' ratios to them (see :func:`summarize`)."""
+    from drake_uuv.estimators.pcrlb import bound_rmse
+
+    out: dict[str, Any] = {}
+    bounds: dict[str, tuple[float, float]] = {}
+    if information_sum is not None:
+        covs = monte_carlo_bound(information_sum, summary["runs"], scenario)
+        bounds["pcrlb"] = bound_rmse(covs, scenario.steady_state_start)
+    for name, key in (("pcrlb_per_run", "pcrlb"), ("kf_riccati", "kf_riccati")):
+        if f"{key}_position_rmse" in column:
+            position, velocity = (
+                math.sqrt(float(np.mean(column[f"{key}_{part}_rmse"] ** 2)))
+                for part in ("position", "velocity")
+            )
+            bounds[name] = (position, velocity)
+    for name, (position, velocity) in bounds.items():
+        out[f"{name}_position_rmse"] = _finite(position)
+        out[f"{name}_velocity_rmse"] = _finite(velocity)
+    for name, suffix in (("pcrlb", "pcrlb"), ("pcrlb_per_run", "per_run_pcrlb")):
+        if name not in bounds:
+            continue
+        for index, part in enumerate(("position", "velocity")):
+            bound = bounds[name][index]
+            rmse = summary.get(f"{part}_rmse")
+            key = f"{part}_rmse_over_{suffix}"
+            out[key] = None if rmse is None else _finite(rmse / bound)
+            out[f"{key}_ci95"] = [
+                None if v is None else _finite(v / bound) for v in summary[f"{part}_rmse_ci95"]
+            ]
+    if bounds:
+        out["bound_method"] = BOUND_METHOD
+    return out
+
+
 def _finite(value: float) -> float | None:
     """JSON has no inf/NaN: non-finite values become null."""
     return float(value) if math.isfinite(value) else None
 
 
 def summarize(
-    metric_names: list[str], metrics: np.ndarray, scenario: Scenario, seeds: np.ndarray
+    metric_names: list[str],
+    metrics: np.ndarray,
+    scenario: Scenario,
+    seeds: np.ndarray,
+    information_sum: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The study summary.
 
@@ -445,6 +571,14 @@ def summarize(
     ``tracking_bounded_fraction``: runs whose steady-state tracking error stays below
     :data:`BOUNDED_TRACKING_THRESHOLD`. Each has a 95 % interval (``*_ci95``, see
     :data:`INTERVAL_METHOD`). Non-finite numbers are written as null.
+
+    Bounds (:data:`BOUND_METHOD`), each as ``*_position_rmse`` and ``*_velocity_rmse``:
+    ``pcrlb`` (the Monte Carlo PCRLB, from ``information_sum``, Σ over runs of ``M(k)``),
+    ``pcrlb_per_run`` (√ of the mean over runs of each run's squared bound) and
+    ``kf_riccati`` (the paper's KF's Riccati covariance, likewise); and the ratios
+    ``position_rmse_over_pcrlb``, ``velocity_rmse_over_pcrlb``,
+    ``position_rmse_over_per_run_pcrlb``, ``velocity_rmse_over_per_run_pcrlb``, each with the
+    RMSE's 95 % interval divided by the bound (``*_ci95``; the bound taken as exact).
     """
     column = {name: metrics[:, i] for i, name in enumerate(metric_names)}
     runs = len(seeds)
@@ -483,6 +617,8 @@ def summarize(
     summary["divergence_threshold_m"] = DIVERGENCE_THRESHOLD
     summary["bounded_tracking_threshold_m"] = BOUNDED_TRACKING_THRESHOLD
     summary["interval_method"] = INTERVAL_METHOD
+    with np.errstate(all="ignore"):
+        summary.update(bound_summary(summary, column, scenario, information_sum))
     return summary
 
 
@@ -498,15 +634,23 @@ def _runs_csv(seeds: np.ndarray, names: list[str], metrics: np.ndarray) -> str:
 def finish_study(study: Study, computed: int = 0, figures: bool = True) -> StudyResult:
     """Reads the study's runs from disk; writes ``runs.csv``, ``summary.json``, the figure."""
     seeds, names, metrics, norms = load_runs(study)
-    summary = summarize(names, metrics, study.scenario, seeds)
+    information = load_information(study)
+    summary = summarize(names, metrics, study.scenario, seeds, information)
     out_dir = Path(study.out_dir)
     write_text_atomic(out_dir / "runs.csv", _runs_csv(seeds, names, metrics))
     write_json_atomic(out_dir / "summary.json", summary)
     if figures:
-        from drake_uuv.analysis.figures import band_figure, save_figure
+        from drake_uuv.analysis.figures import band_figure, bound_curves, save_figure
 
+        bounds = None
+        if information is not None:
+            bounds = bound_curves(monte_carlo_bound(information, len(seeds), study.scenario))
         save_figure(
-            band_figure(dict(zip(NORMS, np.moveaxis(norms, 1, 0), strict=True)), study.scenario),
+            band_figure(
+                dict(zip(NORMS, np.moveaxis(norms, 1, 0), strict=True)),
+                study.scenario,
+                bounds=bounds,
+            ),
             out_dir / "figures" / "bands",
         )
     return StudyResult(study, seeds, names, metrics, norms, summary, computed)
@@ -574,8 +718,30 @@ def format_summary(summary: dict[str, Any]) -> str:
             "consistent)",
             f"  diverged {summary['diverged_fraction']:.1%}, tracking bounded "
             f"{summary['tracking_bounded_fraction']:.1%}",
+            *_bound_lines(summary, number),
         ]
     )
+
+
+def _bound_lines(summary: dict[str, Any], number: Callable[..., str]) -> list[str]:
+    """The PCRLB lines of :func:`format_summary` (none when the summary has no bound)."""
+    lines = []
+    for part, unit in (("position", "m"), ("velocity", "m/s")):
+        if f"{part}_rmse_over_pcrlb" not in summary:
+            continue
+        line = (
+            f"  {part} PCRLB {number(summary[f'pcrlb_{part}_rmse'])} {unit}: RMSE / PCRLB "
+            f"{number(summary[f'{part}_rmse_over_pcrlb'], '.3f')}"
+        )
+        if f"{part}_rmse_over_per_run_pcrlb" in summary:
+            line += (
+                f", / per-run bound {number(summary[f'pcrlb_per_run_{part}_rmse'])} "
+                f"{number(summary[f'{part}_rmse_over_per_run_pcrlb'], '.3f')}"
+            )
+        if f"kf_riccati_{part}_rmse" in summary:
+            line += f"; paper-KF Riccati {number(summary[f'kf_riccati_{part}_rmse'])}"
+        lines.append(line)
+    return lines
 
 
 def _montecarlo(args: argparse.Namespace) -> int:

@@ -4,7 +4,7 @@ Every figure is built from a run's log (``SimulationResult.log``, the arrays of 
 and its scenario, and written as PNG and SVG by :func:`save_figure`:
 
 * ``errors``: estimation error (red) and tracking error (blue) against k, with insets zoomed
-  on k = 200..250 (the paper's Fig. "error");
+  on k = 200..250 (the paper's Fig. "error"), and the PCRLB along the run (black);
 * ``trajectory``: 3-D target trajectory (red line, red triangles), UUV trajectory, sonar s1
   (blue stars) and s2 (green stars), and an inset of the UUV's attitude frames (the paper's
   Fig. "trajectory");
@@ -12,7 +12,8 @@ and its scenario, and written as PNG and SVG by :func:`save_figure`:
   ``analysis.pe_window``;
 * ``nees``: NEES against k with the χ²(6) 95 % band;
 * ``bands`` (Monte Carlo): median and 5–95 % of the errors against k over runs, and the mean
-  NEES over runs with its χ²(6M)/M band.
+  NEES over runs with its χ²(6M)/M band; with the Monte Carlo PCRLB, the RMS error over runs
+  beside it.
 
 Matplotlib runs on the Agg backend; figures are closed after saving.
 """
@@ -29,11 +30,12 @@ from matplotlib.figure import Figure  # noqa: E402
 
 from drake_uuv.analysis.stats import nees_band  # noqa: E402
 from drake_uuv.io import save_figure_atomic  # noqa: E402
-from drake_uuv.metrics import errors  # noqa: E402
+from drake_uuv.metrics import bound_covariances, errors  # noqa: E402
 from drake_uuv.scenario import Scenario  # noqa: E402
 
 ESTIMATION_COLOR = "tab:red"
 TRACKING_COLOR = "tab:blue"
+BOUND_COLOR = "black"
 TARGET_COLOR = "red"
 S1_COLOR = "blue"
 S2_COLOR = "green"
@@ -93,18 +95,35 @@ def _add_zoom_inset(axis: plt.Axes, k: np.ndarray, series: Sequence[tuple], wind
     axis.indicate_inset_zoom(inset, edgecolor="0.4")
 
 
+def bound_curves(covs: np.ndarray) -> dict[str, np.ndarray]:
+    """``position`` and ``velocity``: √trace of the 3×3 blocks of covariances (N×6×6), the
+    RMS error a bound allows at each k."""
+    covs = np.asarray(covs, dtype=float)
+    return {
+        "position": np.sqrt(np.trace(covs[:, :3, :3], axis1=1, axis2=2)),
+        "velocity": np.sqrt(np.trace(covs[:, 3:, 3:], axis1=1, axis2=2)),
+    }
+
+
 def error_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
-    """Estimation error (red) and tracking error (blue) against k, insets on k = 200..250."""
+    """Estimation error (red) and tracking error (blue) against k, insets on k = 200..250.
+
+    Beside the estimation error, the PCRLB along this run's true trajectory (black, √trace of
+    its position and velocity blocks: the RMS error no estimator can beat on average).
+    """
     e = errors(log, scenario)
     k = log["k"]
     position = np.linalg.norm(e["position"], axis=1)
     velocity = np.linalg.norm(e["velocity"], axis=1)
     tracking = np.linalg.norm(e["tracking"], axis=1)
+    bound = bound_curves(bound_covariances(log, scenario)["pcrlb"])
     figure, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
     _set_margins(figure)
     estimation_series = [
         (position, dict(color=ESTIMATION_COLOR, lw=1.0, label="|q − q̂| [m]")),
         (velocity, dict(color=ESTIMATION_COLOR, lw=0.8, ls=":", label="|ϑ − ϑ̂| [m/s]")),
+        (bound["position"], dict(color=BOUND_COLOR, lw=0.9, ls="--", label="PCRLB, position")),
+        (bound["velocity"], dict(color=BOUND_COLOR, lw=0.8, ls=":", label="PCRLB, velocity")),
     ]
     tracking_series = [(tracking, dict(color=TRACKING_COLOR, lw=1.0, label="|q − R q*| [m]"))]
     window = _zoom_window(len(k))
@@ -297,11 +316,18 @@ def write_run_figures(
     return paths
 
 
-def band_figure(norms: dict[str, np.ndarray], scenario: Scenario, title: str = "") -> Figure:
+def band_figure(
+    norms: dict[str, np.ndarray],
+    scenario: Scenario,
+    title: str = "",
+    bounds: dict[str, np.ndarray] | None = None,
+) -> Figure:
     """Monte Carlo bands: median and 5–95 % of each error norm against k, and the mean NEES.
 
     ``norms`` maps ``position``, ``velocity``, ``tracking`` and ``nees`` to (runs × steps)
-    arrays, as collected by :mod:`drake_uuv.montecarlo`.
+    arrays, as collected by :mod:`drake_uuv.montecarlo`. ``bounds`` (optional) maps
+    ``position`` and ``velocity`` to the per-step bound (:func:`bound_curves` of the Monte
+    Carlo PCRLB), drawn in black beside the RMS error over runs (dashed), its like.
     """
     runs, steps = norms["position"].shape
     k = np.arange(steps)
@@ -317,6 +343,10 @@ def band_figure(norms: dict[str, np.ndarray], scenario: Scenario, title: str = "
         low, median, high = np.nanpercentile(values, [5, 50, 95], axis=0)
         axis.fill_between(k, low, high, color=color, alpha=0.25, lw=0, label="5–95 %")
         axis.plot(k, median, color=color, lw=1.0, label="median")
+        if bounds is not None and key in bounds:
+            rms = np.sqrt(np.nanmean(values * values, axis=0))
+            axis.plot(k, rms, color=color, lw=0.9, ls="--", label="RMS over runs")
+            axis.plot(k, bounds[key], color=BOUND_COLOR, lw=1.0, label="PCRLB")
         axis.set_yscale("log")
         axis.set_ylabel(label)
         axis.grid(True, which="both", alpha=0.3)

@@ -77,26 +77,43 @@ def _as_trajectory(a: np.ndarray, name: str, width: int) -> np.ndarray:
     return a
 
 
+def _availability(available: np.ndarray | None, steps: int) -> np.ndarray:
+    if available is None:
+        return np.ones((steps, 2), dtype=bool)
+    mask = np.asarray(available, dtype=bool)
+    if mask.shape != (steps, 2):
+        raise ValueError(f"available must have shape ({steps}, 2), got {mask.shape}")
+    return mask
+
+
 def measurement_information(
-    q_true: np.ndarray, q_s: np.ndarray, eta: np.ndarray, samples_per_step: int
+    q_true: np.ndarray,
+    q_s: np.ndarray,
+    eta: np.ndarray,
+    samples_per_step: int,
+    available: np.ndarray | None = None,
 ) -> np.ndarray:
     """Fisher information ``M(k) = H(x_k)ᵀ R⁻¹ H(x_k)`` of the raw ranges at each step.
 
     ``q_true`` (N×3) true relative positions, ``q_s`` (N×3) world baselines, ``eta`` (2,)
-    range noise variances, ``f = samples_per_step``. Returns (N×6×6); only the position block
-    is non-zero: ``Σ_i (f/η_i) u_i u_iᵀ`` with ``u_i`` the unit line-of-sight vectors.
+    range noise variances, ``f = samples_per_step``; ``available`` (N×2 bool, default all
+    true) says which sonar returned at each step (a missing return carries no information).
+    Returns (N×6×6); only the position block is non-zero: ``Σ_i (f/η_i) u_i u_iᵀ`` over the
+    available sonars, with ``u_i`` the unit line-of-sight vectors.
     """
     q = _as_trajectory(q_true, "q_true", 3)
     qs = _as_trajectory(q_s, "q_s", 3)
     if qs.shape != q.shape:
         raise ValueError(f"q_s shape {qs.shape} differs from q_true shape {q.shape}")
+    mask = _availability(available, q.shape[0])
     eta = np.asarray(eta, dtype=float).reshape(2)
     weights = float(samples_per_step) / eta
     M = np.zeros((q.shape[0], 6, 6))
     for i, sign in enumerate((0.5, -0.5)):
         r = q + sign * qs
         u = r / np.maximum(np.linalg.norm(r, axis=1, keepdims=True), 1e-9)
-        M[:, :3, :3] += weights[i] * u[:, :, None] * u[:, None, :]
+        w = np.where(mask[:, i], weights[i], 0.0)
+        M[:, :3, :3] += w[:, None, None] * u[:, :, None] * u[:, None, :]
     return M
 
 
@@ -109,19 +126,22 @@ def pcrlb_recursion(
     averaged over runs if a Monte Carlo bound is wanted), ``P0`` the prior covariance of
     ``x(0)`` (the filter's ``P(0|−1)``), ``W`` the target acceleration covariance.
     Returns the bounds ``J(k)⁻¹`` (N×6×6) on the filtered estimate's error covariance.
+    Leading batch dimensions (``B×N×6×6``) run independent recursions at once, for the
+    price of one (the loop is bound by numpy's per-call cost, not by arithmetic).
     """
     M = np.asarray(information, dtype=float)
-    if M.ndim != 3 or M.shape[1:] != (6, 6):
+    if M.ndim < 3 or M.shape[-2:] != (6, 6):
         raise ValueError(f"information must have shape (N, 6, 6), got {M.shape}")
     A, _ = relative_model_matrices(time_step)
     Q = process_noise_covariance(W, time_step)
-    P_pred = _symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
+    P0 = _symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
+    P_pred = np.broadcast_to(P0, M.shape[:-3] + (6, 6))
     bounds = np.empty_like(M)
-    for k in range(M.shape[0]):
+    for k in range(M.shape[-3]):
         if k > 0:
-            P_pred = _symmetrise(A @ bounds[k - 1] @ A.T + Q)  # (Q + A J⁻¹ Aᵀ)
-        J = _symmetrise(np.linalg.inv(P_pred) + M[k])
-        bounds[k] = _symmetrise(np.linalg.inv(J))
+            P_pred = _symmetrise(A @ bounds[..., k - 1, :, :] @ A.T + Q)  # (Q + A J⁻¹ Aᵀ)
+        J = _symmetrise(np.linalg.inv(P_pred) + M[..., k, :, :])
+        bounds[..., k, :, :] = _symmetrise(np.linalg.inv(J))
     return bounds
 
 
@@ -133,15 +153,18 @@ def pcrlb_along_trajectory(
     eta: np.ndarray,
     samples_per_step: int,
     time_step: float,
+    available: np.ndarray | None = None,
 ) -> np.ndarray:
     """PCRLB ``J(k)⁻¹`` (N×6×6) with the expectation replaced by its value on one trajectory.
 
     ``q_true`` (N×3) is the true relative position ``p_uuv − p_target`` at steps 0..N−1,
     ``q_s`` (N×3) the world baselines ``R(k) b``, ``P0`` (6×6) the prior covariance
-    ``P(0|−1)``, ``W`` (3×3), ``eta`` (2,) the range noise variances, ``samples_per_step`` f.
+    ``P(0|−1)``, ``W`` (3×3), ``eta`` (2,) the range noise variances, ``samples_per_step`` f,
+    ``available`` (N×2 bool, optional) which sonars returned (see
+    :func:`measurement_information`).
     For the Monte Carlo bound use :func:`pcrlb_monte_carlo` (see the module docstring).
     """
-    M = measurement_information(q_true, q_s, eta, samples_per_step)
+    M = measurement_information(q_true, q_s, eta, samples_per_step, available)
     return pcrlb_recursion(M, P0, W, time_step)
 
 
@@ -204,12 +227,19 @@ def pcrlb_per_run_mean(
 
 
 def kf_riccati_covariance(
-    q_s: np.ndarray, P0: np.ndarray, W: np.ndarray, Gamma: np.ndarray, time_step: float
+    q_s: np.ndarray,
+    P0: np.ndarray,
+    W: np.ndarray,
+    Gamma: np.ndarray,
+    time_step: float,
+    available: np.ndarray | None = None,
 ) -> np.ndarray:
     """The paper's linear KF's own covariance ``P(k|k)`` (N×6×6): its Riccati recursion.
 
     Measurement ``Y(k) = q_s(k)ᵀ q + v̄`` with noise variance ``Gamma[k]`` (N,), ``C(k) =
     [q_s(k)ᵀ, 0]``, prior ``P(0|−1) = P0``; gain form with Joseph update, as the filter runs.
+    ``available`` (N×2 bool, optional): ``Y`` needs both ranges, so a step where either sonar
+    is missing only predicts.
     With ``Γ`` evaluated on the true ranges this is the KF's MSE (a lower bound for no other
     estimator; compare it with the PCRLB to see what ``Y`` throws away).
     """
@@ -217,6 +247,7 @@ def kf_riccati_covariance(
     Gamma = np.asarray(Gamma, dtype=float).reshape(-1)
     if Gamma.shape[0] != qs.shape[0]:
         raise ValueError(f"Gamma has {Gamma.shape[0]} entries for {qs.shape[0]} steps")
+    both = _availability(available, qs.shape[0]).all(axis=1)
     A, _ = relative_model_matrices(time_step)
     Q = process_noise_covariance(W, time_step)
     P_pred = _symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
@@ -225,6 +256,9 @@ def kf_riccati_covariance(
     for k in range(qs.shape[0]):
         if k > 0:
             P_pred = _symmetrise(A @ covs[k - 1] @ A.T + Q)
+        if not both[k]:
+            covs[k] = P_pred
+            continue
         C = np.zeros((1, 6))
         C[0, :3] = qs[k]
         S = float((C @ P_pred @ C.T)[0, 0]) + Gamma[k]
