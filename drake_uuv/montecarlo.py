@@ -70,6 +70,19 @@ BOUND_METHOD = (
     "k ≥ steady_state_start of the trace of the position or velocity block)"
 )
 _SCHEMA = 1
+# Metrics the summary reads (every completed run has them).
+NEEDED_METRICS = (
+    "position_rmse",
+    "velocity_rmse",
+    "tracking_rmse",
+    "nees_mean",
+    "final_position_error",
+    "max_tracking_error",
+    "relative_speed_mean",
+    "relative_speed_peak",
+    "acceleration_mean",
+    "acceleration_peak",
+)
 _PR_SET_PDEATHSIG = 1  # <sys/prctl.h>
 _STUDY_FILE = "study.json"
 _PARTS = "runs"
@@ -148,23 +161,30 @@ def run_seeds(scenario: Scenario, seeds: Sequence[int]) -> dict[str, Any]:
     Returns ``{"seeds": int64 (n,), "metric_names": [...], "metrics": float64 (n × m),
     "norms": float32 (n × 4 × steps), "information_sum": int64 (steps × 3 × 3) or None}``.
     The metrics are those of :func:`drake_uuv.metrics.run_metrics` plus ``max_tracking_error``
-    (steady state) and ``final_tracking_error``; ``wall_time_s`` is left out so results are
-    reproducible. ``information_sum`` is Σ over the runs of the position block of
-    :func:`drake_uuv.metrics.run_information` in units of ``2^-e``
-    (:func:`information_exponent`); None if any entry is not finite.
+    (steady state), ``final_tracking_error`` and ``failed`` (1 for a run the estimator-health
+    monitor stopped, whose other metrics and norms are then NaN; see :func:`summarize`);
+    ``wall_time_s`` is left out so results are reproducible. ``information_sum`` is Σ over
+    the runs of the position block of :func:`drake_uuv.metrics.run_information` in units of
+    ``2^-e`` (:func:`information_exponent`); None if any entry is not finite or a run failed.
     """
     from drake_uuv.metrics import errors, run_information
+    from drake_uuv.monitor import SimulationFailure
 
     simulation = _simulation(scenario)
     start = scenario.steady_state_start
-    rows, norms = [], []
-    names: list[str] = []
+    rows: list[dict[str, float]] = []
+    norms = []
     exponent = information_exponent(scenario)
     information: np.ndarray | None = np.zeros((scenario.steps, 3, 3), dtype=np.int64)
     with np.errstate(all="ignore"):
         for seed in seeds:
             try:
                 result = simulation.run(int(seed))
+            except SimulationFailure:  # a broken estimator: a failed (and diverged) run
+                rows.append({"failed": 1.0})
+                norms.append(np.full((len(NORMS), scenario.steps), np.nan, dtype=np.float32))
+                information = None
+                continue
             except Exception as e:
                 raise RuntimeError(f"run with seed {seed} failed: {e}") from e
             e = errors(result.log, result.scenario)
@@ -176,8 +196,8 @@ def run_seeds(scenario: Scenario, seeds: Sequence[int]) -> dict[str, Any]:
             }
             metrics["max_tracking_error"] = float(np.max(tracking[start:]))
             metrics["final_tracking_error"] = float(tracking[-1])
-            names = list(metrics)
-            rows.append([metrics[name] for name in names])
+            metrics["failed"] = 0.0
+            rows.append(metrics)
             norms.append(
                 np.stack(
                     [
@@ -193,13 +213,23 @@ def run_seeds(scenario: Scenario, seeds: Sequence[int]) -> dict[str, Any]:
                 information += np.rint(np.ldexp(M, exponent)).astype(np.int64)
             else:
                 information = None
+    names = _metric_names([list(row) for row in rows])
     return {
         "seeds": np.asarray(seeds, dtype=np.int64),
         "metric_names": names,
-        "metrics": np.asarray(rows, dtype=float),
+        "metrics": np.asarray([[row.get(n, math.nan) for n in names] for row in rows]),
         "norms": np.asarray(norms, dtype=np.float32),
         "information_sum": information,
     }
+
+
+def _metric_names(lists: Sequence[list[str]]) -> list[str]:
+    """The canonical metric names: a completed run's (all have the same), whatever the order.
+
+    A failed run has only ``failed``; a chunk or study of failed runs only has that name.
+    """
+    longest = max(lists, key=len, default=["failed"])
+    return longest + sorted({n for names in lists for n in names} - set(longest))
 
 
 def _run_task(task: tuple[int, Scenario, list[int]]) -> tuple[int, dict[str, Any]]:
@@ -454,19 +484,21 @@ def run_study(study: Study, **options: Any) -> StudyResult:
 def load_runs(study: Study) -> tuple[np.ndarray, list[str], np.ndarray, np.ndarray]:
     """Seeds, metric names, metrics and norms of the study's runs, in seed order."""
     wanted = {study.scenario.random_seed + i for i in range(study.runs)}
-    by_seed: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    names: list[str] = []
+    by_seed: dict[int, tuple[dict[str, float], np.ndarray]] = {}
+    name_lists: list[list[str]] = []
     for part in _read_parts(study.out_dir):
-        names = part["metric_names"]
+        name_lists.append(part["metric_names"])
         for row, seed in enumerate(part["seeds"]):
             if int(seed) in wanted:
-                by_seed[int(seed)] = (part["metrics"][row], part["norms"][row])
+                values = dict(zip(part["metric_names"], part["metrics"][row], strict=True))
+                by_seed[int(seed)] = (values, part["norms"][row])
     if len(by_seed) != len(wanted):
         raise MonteCarloError(
             f"{study.out_dir}: {len(wanted) - len(by_seed)} of {len(wanted)} runs are missing"
         )
     seeds = np.array(sorted(by_seed), dtype=np.int64)
-    metrics = np.stack([by_seed[int(s)][0] for s in seeds])
+    names = _metric_names(name_lists)
+    metrics = np.array([[by_seed[int(s)][0].get(n, math.nan) for n in names] for s in seeds])
     norms = np.stack([by_seed[int(s)][1] for s in seeds])
     return seeds, names, metrics, norms
 
@@ -566,8 +598,10 @@ def summarize(
 
     ``position_rmse``, ``velocity_rmse``, ``tracking_rmse``: √(mean over runs and steady-state
     steps of the squared error norm), i.e. the per-run mean-square errors averaged, then the
-    root. ``nees_mean``: mean over runs and steady-state steps. ``diverged_fraction``: runs
-    whose final position error exceeds :data:`DIVERGENCE_THRESHOLD` (or is not finite).
+    root. ``nees_mean``: mean over runs and steady-state steps. These, the speeds and the bounds
+    are taken over the ``completed_runs``; ``failed_fraction`` counts the runs the
+    estimator-health monitor stopped. ``diverged_fraction``: runs whose final position error
+    exceeds :data:`DIVERGENCE_THRESHOLD` or is not finite (so failed runs count as diverged).
     ``tracking_bounded_fraction``: runs whose steady-state tracking error stays below
     :data:`BOUNDED_TRACKING_THRESHOLD`. Each has a 95 % interval (``*_ci95``, see
     :data:`INTERVAL_METHOD`). Non-finite numbers are written as null.
@@ -580,13 +614,20 @@ def summarize(
     ``position_rmse_over_per_run_pcrlb``, ``velocity_rmse_over_per_run_pcrlb``, each with the
     RMSE's 95 % interval divided by the bound (``*_ci95``; the bound taken as exact).
     """
-    column = {name: metrics[:, i] for i, name in enumerate(metric_names)}
+    every = {name: metrics[:, i] for i, name in enumerate(metric_names)}
     runs = len(seeds)
+    failed = every.get("failed", np.zeros(runs)) != 0.0
+    column = {name: values[~failed] for name, values in every.items()}
+    for name in NEEDED_METRICS:  # a study whose runs all failed has no other metric
+        column.setdefault(name, np.empty(0))
+        every.setdefault(name, np.full(runs, math.nan))
     summary: dict[str, Any] = {
         "runs": runs,
         "first_seed": int(seeds[0]),
         "steps": scenario.steps,
         "steady_state_start": scenario.steady_state_start,
+        "completed_runs": int(np.sum(~failed)),
+        "failed_fraction": float(np.mean(failed)),
     }
     with np.errstate(all="ignore"):
         for name in ("position", "velocity", "tracking"):
@@ -605,15 +646,16 @@ def summarize(
             nees, lambda x: np.mean(x, axis=-1), BOOTSTRAP_RESAMPLES, seed=BOOTSTRAP_SEED
         )
         summary["nees_mean_ci95"] = [_finite(v) for v in interval]
-        diverged = int(np.sum(~(column["final_position_error"] <= DIVERGENCE_THRESHOLD)))
+        diverged = int(np.sum(~(every["final_position_error"] <= DIVERGENCE_THRESHOLD)))
         summary["diverged_fraction"] = diverged / runs
         summary["diverged_fraction_ci95"] = list(wilson_interval(diverged, runs))
-        bounded = int(np.sum(column["max_tracking_error"] < BOUNDED_TRACKING_THRESHOLD))
+        bounded = int(np.sum(every["max_tracking_error"] < BOUNDED_TRACKING_THRESHOLD))
         summary["tracking_bounded_fraction"] = bounded / runs
         summary["tracking_bounded_fraction_ci95"] = list(wilson_interval(bounded, runs))
         for name in ("relative_speed", "acceleration"):
             summary[f"{name}_mean"] = _finite(float(np.mean(column[f"{name}_mean"])))
-            summary[f"{name}_peak"] = _finite(float(np.max(column[f"{name}_peak"])))
+            peaks = column[f"{name}_peak"]
+            summary[f"{name}_peak"] = _finite(float(np.max(peaks))) if len(peaks) else None
     summary["divergence_threshold_m"] = DIVERGENCE_THRESHOLD
     summary["bounded_tracking_threshold_m"] = BOUNDED_TRACKING_THRESHOLD
     summary["interval_method"] = INTERVAL_METHOD

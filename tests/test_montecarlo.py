@@ -160,6 +160,31 @@ def test_an_interrupted_study_keeps_finished_runs_and_resume_completes_it(tmp_pa
 # ------------------------------------------------------------------------------- summary
 
 
+def test_runs_stopped_by_the_monitor_count_as_failed_and_diverged(tmp_path, monkeypatch):
+    from drake_uuv.monitor import SimulationFailure
+    from drake_uuv.simulation import ClosedLoopSimulation
+
+    original = ClosedLoopSimulation.run
+
+    def run(self, seed=None, **options):
+        if seed in (1, 2):
+            raise SimulationFailure(f"seed {seed}: run stopped: a test failure")
+        return original(self, seed, **options)
+
+    monkeypatch.setattr(ClosedLoopSimulation, "run", run)
+    options = dict(workers=1, progress=False, figures=False)
+    one_per_part = run_study(_study(tmp_path / "a", runs=4), chunk_size=1, **options)
+    one_part = run_study(_study(tmp_path / "b", runs=4), chunk_size=4, **options)
+    assert _outputs(tmp_path / "a") == _outputs(tmp_path / "b")  # parts of failed runs only
+    summary = one_per_part.summary
+    assert summary["completed_runs"] == 2 and summary["failed_fraction"] == 0.5
+    assert summary["diverged_fraction"] >= 0.5
+    np.testing.assert_array_equal(one_part.column("failed"), [0, 1, 1, 0])
+    assert np.isnan(one_part.column("position_rmse")[1])
+    completed = one_part.column("position_rmse")[[0, 3]]
+    assert summary["position_rmse"] == pytest.approx(math.sqrt(np.mean(completed**2)))
+
+
 def test_summary_combines_mean_square_errors_not_rmses():
     names = [
         "position_rmse",
