@@ -32,6 +32,8 @@ from drake_uuv.scenario import ALPHA_PROVEN_INTERVAL, load_scenario
 from drake_uuv.simulation import ClosedLoopSimulation
 
 ROOT = Path(__file__).resolve().parent.parent
+# The comparison groups this page discusses (drake-uuv compare --group ...).
+GROUPS = ["attitude_noise", "alpha"]
 LONG_STEPS = 2000
 LONG_SEEDS = 8
 
@@ -218,7 +220,7 @@ def main() -> None:
     result = run_study(study, **execution)
     bands = (args.work / "montecarlo" / "figures" / "bands.png").read_bytes()
     write_atomic(args.docs / "figures" / "bands.png", lambda f: f.write(bands))
-    compared = compare(selected_variants(None), args.work / "compare", args.runs, **execution)
+    compared = compare(selected_variants(GROUPS), args.work / "compare", args.runs, **execution)
     rows = {variant.name: r.summary for variant, r in compared}
     table = markdown_table([(variant, r.summary) for variant, r in compared])
     speeds = _relative_speed_growth()
@@ -229,7 +231,8 @@ def main() -> None:
 Regenerate with `python scripts/make_results_page.py --runs {args.runs}` (this page, its figures
 in `docs/figures/`, the studies in `out/results/`). The single-run figures come from
 `drake-uuv run` (paper scenario, seed 0), the statistics from
-`drake-uuv montecarlo --runs {args.runs}` and `drake-uuv compare --runs {args.runs}`.
+`drake-uuv montecarlo --runs {args.runs}` and
+`drake-uuv compare --runs {args.runs} {" ".join(f"--group {g}" for g in GROUPS)}`.
 
 ## The paper's figures (one run, seed 0)
 
