@@ -5,13 +5,15 @@ scenario; variants come in named groups (:data:`VARIANT_GROUPS`), each a functio
 its variants. ``drake-uuv compare`` runs every variant of the chosen groups as one Monte Carlo
 batch (one process pool or Dask cluster for all) and writes ``DIR/compare.md`` (one table per
 group) and ``DIR/compare.csv`` (one row per variant), with each variant's study in
-``DIR/studies/<variant>/``.
+``DIR/studies/<variant>/``. The ``estimator`` group (every ``estimator.type`` × attitude
+mode) adds the ratio tables RMSE / PCRLB (:func:`ratio_tables`) to ``compare.md``, and every
+row of ``compare.csv`` carries the bounds and ratios of its summary.
 
-To add rows (another estimator, another tracking law), add a group::
+To add rows (another tracking law, say), add a group::
 
-    VARIANT_GROUPS["estimator"] = lambda: [
-        Variant("kf", "estimator", ("estimator.type=kf",)),
-        Variant("ekf", "estimator", ("estimator.type=ekf",)),
+    VARIANT_GROUPS["tracking"] = lambda: [
+        Variant("paper", "tracking law", ("tracking.type=paper",)),
+        Variant("lqr", "tracking law", ("tracking.type=lqr",)),
     ]
 
 or pass ``groups=`` to :func:`compare`.
@@ -35,7 +37,13 @@ from drake_uuv.montecarlo import (
     execution_options,
     run_studies,
 )
-from drake_uuv.scenario import ALPHA_PROVEN_INTERVAL, ATTITUDE_MODES, NOISE_MODELS, load_scenario
+from drake_uuv.scenario import (
+    ALPHA_PROVEN_INTERVAL,
+    ATTITUDE_MODES,
+    ESTIMATOR_TYPES,
+    NOISE_MODELS,
+    load_scenario,
+)
 
 
 @dataclass(frozen=True)
@@ -80,10 +88,27 @@ def alpha_sweep_variants(alphas: Sequence[float] = ALPHAS) -> list[Variant]:
     ]
 
 
+ESTIMATOR_GROUP = "estimator × attitude mode"
+
+
+def estimator_attitude_variants() -> list[Variant]:
+    """Every estimator × attitude mode, for the RMSE / PCRLB table (:func:`ratio_tables`)."""
+    return [
+        Variant(
+            f"{estimator}-{mode}",
+            ESTIMATOR_GROUP,
+            (f"estimator.type={estimator}", f"attitude.mode={mode}"),
+        )
+        for estimator in ESTIMATOR_TYPES
+        for mode in ATTITUDE_MODES
+    ]
+
+
 # Group name → its variants. Other features add groups here.
 VARIANT_GROUPS: dict[str, Callable[[], list[Variant]]] = {
     "attitude_noise": attitude_noise_variants,
     "alpha": alpha_sweep_variants,
+    "estimator": estimator_attitude_variants,
 }
 
 # Columns of the tables: (CSV name, Markdown header, summary key, format).
@@ -136,6 +161,63 @@ def markdown_table(rows: Sequence[tuple[Variant, dict[str, Any]]]) -> str:
     return "\n".join(out)
 
 
+# The bound columns of the CSV (summary keys, see drake_uuv.montecarlo.summarize).
+_BOUND_COLUMNS = [
+    "pcrlb_position_rmse",
+    "pcrlb_velocity_rmse",
+    "pcrlb_per_run_position_rmse",
+    "pcrlb_per_run_velocity_rmse",
+    "kf_riccati_position_rmse",
+    "kf_riccati_velocity_rmse",
+    "position_rmse_over_pcrlb",
+    "velocity_rmse_over_pcrlb",
+    "position_rmse_over_per_run_pcrlb",
+    "velocity_rmse_over_per_run_pcrlb",
+]
+
+
+def _settings(variant: Variant) -> dict[str, str]:
+    return dict(override.split("=", 1) for override in variant.overrides)
+
+
+def ratio_tables(rows: Sequence[tuple[Variant, dict[str, Any]]]) -> str:
+    """Markdown: estimator × attitude mode → RMSE / PCRLB, position and velocity.
+
+    Two tables from the rows of the ``estimator`` group (empty string if there are none):
+    against the Monte Carlo PCRLB (the proven bound) and against the mean of the per-run
+    bounds (what a run-by-run efficient estimator attains; see
+    :mod:`drake_uuv.estimators.pcrlb`). Each cell is ``position / velocity``.
+    """
+    cells: dict[tuple[str, str], dict[str, Any]] = {}
+    for variant, summary in rows:
+        if variant.group == ESTIMATOR_GROUP:
+            settings = _settings(variant)
+            cells[settings["estimator.type"], settings["attitude.mode"]] = summary
+    if not cells:
+        return ""
+    estimators = list(dict.fromkeys(estimator for estimator, _ in cells))
+    modes = list(dict.fromkeys(mode for _, mode in cells))
+    out = []
+    for suffix, title in (
+        ("pcrlb", "RMSE / PCRLB (Monte Carlo bound: information averaged over runs)"),
+        ("per_run_pcrlb", "RMSE / mean of per-run bounds (each along its own trajectory)"),
+    ):
+        out.append(f"### {title}, position / velocity\n")
+        out.append("| estimator | " + " | ".join(modes) + " |")
+        out.append("|---|" + "|".join("---:" for _ in modes) + "|")
+        for estimator in estimators:
+            row = [estimator]
+            for mode in modes:
+                summary = cells.get((estimator, mode), {})
+                row.append(
+                    f"{_number(summary.get(f'position_rmse_over_{suffix}'), '.3g')} / "
+                    f"{_number(summary.get(f'velocity_rmse_over_{suffix}'), '.3g')}"
+                )
+            out.append("| " + " | ".join(row) + " |")
+        out.append("")
+    return "\n".join(out)
+
+
 def csv_table(rows: Sequence[tuple[Variant, dict[str, Any]]]) -> str:
     """One CSV row per variant with every number of its summary and the 95 % bounds."""
     buffer = io.StringIO()
@@ -146,7 +228,7 @@ def csv_table(rows: Sequence[tuple[Variant, dict[str, Any]]]) -> str:
         header.append(name)
         if name.endswith(("rmse", "nees_mean", "fraction")):
             header += [f"{name}_ci95_low", f"{name}_ci95_high"]
-    header += ["relative_speed_peak", "acceleration_peak"]
+    header += ["relative_speed_peak", "acceleration_peak", *_BOUND_COLUMNS]
     writer.writerow(header)
     for variant, summary in rows:
         row: list[Any] = [variant.group, variant.name, variant.note, " ".join(variant.overrides)]
@@ -156,6 +238,7 @@ def csv_table(rows: Sequence[tuple[Variant, dict[str, Any]]]) -> str:
             if name.endswith(("rmse", "nees_mean", "fraction")):
                 row += list(summary.get(f"{name}_ci95", [None, None]))
         row += [summary.get("relative_speed_peak"), summary.get("acceleration_peak")]
+        row += [summary.get(name) for name in _BOUND_COLUMNS]
         writer.writerow(["" if v is None else v for v in row])
     return buffer.getvalue()
 
@@ -196,7 +279,15 @@ def compare(
         "*tracking bounded*: steady-state tracking error stays < 10 m. The paper proves "
         f"bounded tracking for α in ({low:.4f}, {high:.4f}).\n\n"
     )
-    write_text_atomic(out_dir / "compare.md", header + markdown_table(rows))
+    ratios = ratio_tables(rows)
+    if ratios:
+        ratios = (
+            "## Estimators against the posterior Cramér–Rao bound\n\n"
+            "Steady-state RMSE over the bound's RMS (√ mean trace), position / velocity. "
+            "The bound is for the raw two-range measurement with all f samples, evaluated on "
+            "each variant's own true trajectories.\n\n" + ratios
+        )
+    write_text_atomic(out_dir / "compare.md", header + markdown_table(rows) + ratios)
     write_text_atomic(out_dir / "compare.csv", csv_table(rows))
     return list(zip(variants, results, strict=True))
 
@@ -242,7 +333,9 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     from drake_uuv.cli import add_scenario_options
 
     parser = subparsers.add_parser(
-        "compare", help="Monte Carlo table over attitude mode × noise model and an α sweep"
+        "compare",
+        help="Monte Carlo tables: attitude mode × noise model, an α sweep, estimator × attitude "
+        "mode against the PCRLB",
     )
     add_scenario_options(parser)
     add_execution_options(parser)

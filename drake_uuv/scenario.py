@@ -129,9 +129,10 @@ class EstimatorConfig:
     gate_probability: float | None = None
     # ekf, iekf (filters on the raw ranges): they start as the paper's linear KF and hand over
     # once trace(P_qq) ≤ linear_start_position_variance [m²], or after linear_start_max_steps
-    # linear updates (0: no linear start). See estimators/raw_range_filter.py.
+    # linear updates (None: no forced hand-over; 0: no linear start). See
+    # estimators/raw_range_filter.py.
     linear_start_position_variance: float = 0.5
-    linear_start_max_steps: int = 100
+    linear_start_max_steps: int | None = None
 
 
 @dataclass
@@ -448,7 +449,7 @@ def validate_scenario(s: Scenario) -> None:
         _fail("estimator.gate_probability", "must be in (0, 1)", gate)
     e = s.estimator
     _positive("estimator.linear_start_position_variance", e.linear_start_position_variance)
-    if e.linear_start_max_steps < 0:
+    if e.linear_start_max_steps is not None and e.linear_start_max_steps < 0:
         _fail("estimator.linear_start_max_steps", "must be ≥ 0", e.linear_start_max_steps)
 
     _choice("attitude.mode", s.attitude.mode, ATTITUDE_MODES)

@@ -48,10 +48,12 @@ class RawRangeEstimator(RelativeStateEstimator):
     raw ranges when :class:`~drake_uuv.estimators.filters_math.HandoverPolicy` says so:
     ``trace(P_qq)`` below a threshold (0.5 m² by default: second-order range error ≈ 0.03 m,
     under the 0.1 m noise; hand-over at step ≈ 30 from the paper's prior, no divergence from
-    any of the priors tried), or after ``max_linear_steps`` linear updates (so a loop in which
-    the linear KF cannot converge still ends on the ranges). The linear start needs both
-    ranges: a step with one sonar only predicts. A multi-hypothesis or batch start would cost
-    more and buy nothing here: the KF's own covariance says when it is done.
+    any of the priors tried), or after ``max_linear_steps`` linear updates if that is set.
+    By default it is not: where the linear KF cannot converge (a fixed attitude leaves two
+    directions unobservable) a forced hand-over linearises a covariance of thousands of m²
+    and the loop blows up, while staying linear the filter is the paper's KF. The linear
+    start needs both ranges: a step with one sonar only predicts. A multi-hypothesis or batch
+    start would cost more and buy nothing here: the KF's own covariance says when it is done.
 
     Discrete state: groups 0 and 1 as in the base class; group 2 ``[phase, linear updates]``
     with phase :data:`LINEAR_PHASE` (1) or :data:`RANGE_PHASE` (0), advanced in
@@ -109,7 +111,7 @@ class RawRangeEstimator(RelativeStateEstimator):
         self._noise_model = noise_model
         range_difference_noise(noise_model, self._mean_variances, np.ones(2))  # Fail early.
         self._policy = handover if handover is not None else HandoverPolicy()
-        phase = LINEAR_PHASE if self._policy.max_linear_steps > 0 else RANGE_PHASE
+        phase = LINEAR_PHASE if self._policy.linear_start else RANGE_PHASE
         self._start_index = self.DeclareDiscreteState(np.array([phase, 0.0]))
         self._samples_port = self.DeclareVectorInputPort("range_samples", 2 * self._f)
         self._q_s_port = self.DeclareVectorInputPort("q_s", 3)
