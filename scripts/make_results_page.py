@@ -24,7 +24,7 @@ from drake_uuv.analysis.figures import (
     save_figure,
     trajectory_figure,
 )
-from drake_uuv.compare import compare, markdown_table, selected_variants
+from drake_uuv.compare import compare, markdown_table, ratio_tables, selected_variants
 from drake_uuv.io import write_atomic, write_text_atomic
 from drake_uuv.metrics import errors
 from drake_uuv.montecarlo import Study, format_summary, run_study
@@ -33,7 +33,7 @@ from drake_uuv.simulation import ClosedLoopSimulation
 
 ROOT = Path(__file__).resolve().parent.parent
 # The comparison groups this page discusses (drake-uuv compare --group ...).
-GROUPS = ["attitude_noise", "alpha"]
+GROUPS = ["attitude_noise", "alpha", "estimator"]
 LONG_STEPS = 2000
 LONG_SEEDS = 8
 
@@ -203,6 +203,70 @@ steeply with α (section 4).
 """
 
 
+def _estimators(rows: dict[str, dict], ratios: str) -> str:
+    """Beyond the paper (issue 4): the raw-range filters and the PCRLB, with the ratio tables."""
+    if "ekf-trajectory" not in rows or "kf-trajectory" not in rows:
+        return ""
+    ekf, kf = rows["ekf-trajectory"], rows["kf-trajectory"]
+
+    def ratio(summary: dict, part: str, bound: str) -> str:
+        low, high = summary[f"{part}_rmse_over_{bound}_ci95"]
+        return f"{_g(summary[f'{part}_rmse_over_{bound}'])} ({_g(low)}–{_g(high)})"
+
+    lines = []
+    for name in ("kf", "ekf", "iekf"):
+        summary = rows.get(f"{name}-trajectory")
+        if summary is None:
+            continue
+        cells = [name + (" (paper)" if name == "kf" else "")]
+        cells += [
+            ratio(summary, part, bound)
+            for bound in ("pcrlb", "per_run_pcrlb")
+            for part in ("position", "velocity")
+        ]
+        cells.append(_ci(summary, "nees_mean"))
+        lines.append("| " + " | ".join(cells) + " |")
+    table = "\n".join(lines)
+    header = "| estimator | position / PCRLB | velocity / PCRLB | position / per-run bound "
+    header += "| velocity / per-run bound | mean NEES (6) |"
+    riccati = (
+        f"{_g(kf['kf_riccati_position_rmse'])} m, {_g(kf['kf_riccati_velocity_rmse'])} m/s "
+        f"against an RMSE of {_g(kf['position_rmse'])} m, {_g(kf['velocity_rmse'])} m/s"
+    )
+    return f"""## Beyond the paper: how far from the best possible accuracy
+
+The paper's Y = ½(d1² − d2²) keeps only the component of q along the baseline; the two raw
+ranges also carry the distance. The posterior Cramér–Rao bound (PCRLB) of the raw ranges with
+all f samples (Tichavský's recursion with the singular Q = B W Bᵀ handled in covariance form,
+`drake_uuv/estimators/pcrlb.py`) says how well any estimator can do. It depends on the true
+trajectories, which in this closed loop depend on the estimator, so each variant's bound is
+computed on its own runs: the Monte Carlo bound averages the measurement information over
+runs and recurses once (the proven bound); the mean of the per-run bounds, each along its own
+trajectory, is what an estimator efficient on every run attains. `estimator.type: ekf` (and
+`iekf`) filters the raw ranges, started by the paper's linear KF until its covariance is small
+enough to linearise (`drake_uuv/estimators/raw_range_filter.py`).
+
+On the paper scenario (Algorithm 2), steady-state RMSE over the bound, 95 % intervals:
+
+{header}
+|---|---:|---:|---:|---:|---:|
+{table}
+
+The paper's KF sits at its own bound, its Riccati covariance ({riccati}): what it loses is the
+information Y throws away. The EKF reaches the per-run bound, with a mean NEES of
+{_g(ekf["nees_mean"])} (6 for a consistent filter); it stays
+{_g(ekf["position_rmse_over_pcrlb"], ".2f")}× the proven bound in position because two ranges
+say nothing along q_s × q, and that blind direction differs from run to run: averaging the
+information over runs fills it, so the proven bound is below what any estimator reaches run
+by run (with the geometry made independent of the estimate, the two bounds coincide and the
+EKF attains them: `python -m drake_uuv.estimators._reference --control-from-truth`). The
+iterated EKF adds nothing at this noise level. With a fixed attitude no filter converges: the
+raw-range filters never leave their linear start and are the paper's KF.
+
+{ratios}
+"""
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=100, help="runs per study (default: 100)")
@@ -267,6 +331,7 @@ percentile bootstrap over runs; fractions with Wilson intervals
 ![bands](figures/bands.png)
 
 {_claims(rows, args.runs, numbers, speeds)}
+{_estimators(rows, ratio_tables([(variant, r.summary) for variant, r in compared]))}
 ## Comparison tables
 
 {table}
