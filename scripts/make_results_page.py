@@ -278,7 +278,9 @@ def main() -> None:
     execution = dict(workers=args.workers, resume=args.resume)
 
     (args.docs / "figures").mkdir(parents=True, exist_ok=True)
+    # Every scenario is loaded before the long studies start.
     numbers = _figures(args.docs)
+    speeds = _relative_speed_growth()
     paper = load_scenario("paper")
     study = Study("paper", paper, args.runs, args.work / "montecarlo")
     result = run_study(study, **execution)
@@ -287,7 +289,6 @@ def main() -> None:
     compared = compare(selected_variants(GROUPS), args.work / "compare", args.runs, **execution)
     rows = {variant.name: r.summary for variant, r in compared}
     table = markdown_table([(variant, r.summary) for variant, r in compared])
-    speeds = _relative_speed_growth()
     summary = result.summary
 
     page = f"""# Results: what reproduces of the paper
