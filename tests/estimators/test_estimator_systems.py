@@ -21,7 +21,11 @@ from drake_uuv.estimators.filters_math import (
     iekf_update,
     range_difference_update,
 )
-from drake_uuv.estimators.pcrlb import kf_riccati_covariance, pcrlb_along_trajectory
+from drake_uuv.estimators.pcrlb import (
+    kf_riccati_covariance,
+    measurement_information,
+    pcrlb_along_trajectory,
+)
 from drake_uuv.estimators.range_model import (
     process_noise_covariance,
     range_difference_measurement,
@@ -326,3 +330,26 @@ def test_ratio_tables_pivot_estimator_by_attitude_mode() -> None:
     assert "| ekf | 1.08 / 1.01 | 1.2 / — |" in text
     assert "77" not in text  # other groups stay out
     assert ratio_tables(rows[-1:]) == ""
+
+
+def test_bounds_drop_the_information_of_missing_returns() -> None:
+    rng = np.random.default_rng(4)
+    q, q_s = rng.normal(size=(6, 3)) * 2, rng.normal(size=(6, 3))
+    available = np.array([[1, 1], [1, 0], [0, 1], [0, 0], [1, 1], [0, 1]], dtype=bool)
+    full = measurement_information(q, q_s, ETA, F)
+    masked = measurement_information(q, q_s, ETA, F, available)
+    for k, (first, second) in enumerate(available):
+        alone = [measurement_information(q[k : k + 1], q_s[k : k + 1], ETA, F, [[i == 0, i == 1]])
+                 for i in (0, 1)]  # fmt: skip
+        expected = first * alone[0][0] + second * alone[1][0]
+        assert_allclose(masked[k], expected, atol=1e-12)
+    assert_allclose(masked[[0, 4]], full[[0, 4]])
+    # Y needs both ranges: the KF's Riccati recursion only predicts at the other steps.
+    gamma = np.full(6, 0.1)
+    covs = kf_riccati_covariance(q_s, np.eye(6), W, gamma, T, available)
+    A, _ = relative_model_matrices(T)
+    Q = process_noise_covariance(W, T)
+    assert_allclose(covs[1], A @ covs[0] @ A.T + Q, rtol=1e-12)
+    assert_allclose(covs[3], A @ covs[2] @ A.T + Q, rtol=1e-12)
+    with pytest.raises(ValueError, match=r"available must have shape \(6, 2\)"):
+        measurement_information(q, q_s, ETA, F, available[:3])
