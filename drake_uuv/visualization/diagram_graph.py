@@ -48,18 +48,30 @@ def diagram_dot(scenario: Scenario, max_depth: int = 1) -> str:
 
 
 def diagram_variants() -> dict[str, list[str]]:
-    """Every diagram the package can build: one per attitude mode, estimator and tracking law.
+    """Every distinct diagram the package builds, by the overrides of the paper scenario.
 
-    Derived from the scenario's lists of types, so a new estimator or controller type gets
-    its export without anyone editing this function.
+    One per attitude mode, estimator type and tracking law (from the scenario's lists of types,
+    so a new type gets its export without anyone editing this function), one with every sonar
+    fault switched on (it adds ports), and none that would repeat the paper's own diagram.
     """
-    variants: dict[str, list[str]] = {"paper": []}
+    paper = load_scenario("paper")
+    candidates: dict[str, list[str]] = {}
     for mode in ATTITUDE_MODES:
-        variants.setdefault(f"attitude_{mode}", [f"attitude.mode={mode}"])
+        candidates[f"attitude_{mode}"] = [f"attitude.mode={mode}"]
     for estimator in ESTIMATOR_TYPES:
-        variants.setdefault(f"estimator_{estimator}", [f"estimator.type={estimator}"])
+        candidates[f"estimator_{estimator}"] = [f"estimator.type={estimator}"]
     for law in TRACKING_TYPES:
-        variants.setdefault(f"tracking_{law}", [f"tracking.type={law}"])
+        candidates[f"tracking_{law}"] = [f"tracking.type={law}"]
+    candidates["sonar_faults"] = [
+        "sonar.beam_half_angle_deg=10",
+        "sonar.dropout_probability=[0.1, 0.1]",
+        "sonar.outlier_probability=0.05",
+        "estimator.gate_probability=0.99",
+    ]
+    variants: dict[str, list[str]] = {"paper": []}
+    for name, overrides in candidates.items():
+        if load_scenario("paper", overrides) != paper:
+            variants[name] = overrides
     return variants
 
 
