@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from drake_uuv.controllers.attitude_generator import zeta
-from drake_uuv.estimators.kalman_filter import kf_predict, range_difference_update
+from drake_uuv.estimators.filters_math import predict, range_difference_update
 from drake_uuv.plants.double_integrator import double_integrator
 from drake_uuv.scenario import Scenario, load_scenario
 from drake_uuv.sensors.dual_sonar import range_difference_noise
@@ -63,7 +63,7 @@ def plain_loop(scenario: Scenario, seed: int) -> dict[str, np.ndarray]:
         x_uuv = A @ x_uuv + B @ a_W
         R = exp_so3(u2 * t) @ R
         x_target = A @ x_target + B @ (L @ rng.standard_normal(3))
-        x_pred, P_pred = kf_predict(x_hat, P, a_W, A, B, Q)
+        x_pred, P_pred = predict(x_hat, P, a_W, A, B, Q)
     return {"position_error": position_error}
 
 

@@ -15,6 +15,7 @@ from pydrake.systems.framework import (
 )
 
 from drake_uuv.analysis.stats import chi2_ppf
+from drake_uuv.estimators.filters_math import predict
 from drake_uuv.plants.double_integrator import double_integrator
 from drake_uuv.sensors.dual_sonar import VALID
 
@@ -148,9 +149,10 @@ class RelativeStateEstimator(LeafSystem):
 
     def _predict(self, context: Context, discrete_state: DiscreteValues) -> None:
         filtered: FilteredEstimate = self._filtered.Eval(context)
-        a_W = self._a_port.Eval(context)
-        discrete_state.set_value(self._x_index, self._A @ filtered.x + self._B @ a_W)
-        P = self._A @ filtered.P @ self._A.T + self._Q
+        x, P = predict(
+            filtered.x, filtered.P, self._a_port.Eval(context), self._A, self._B, self._Q
+        )
+        discrete_state.set_value(self._x_index, x)
         discrete_state.set_value(self._P_index, P.ravel())
         self.advance_extra_state(context, filtered, discrete_state)
 

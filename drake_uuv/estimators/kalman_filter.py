@@ -10,14 +10,7 @@ from drake_uuv.estimators.base import MeasurementUpdate, RelativeStateEstimator
 from drake_uuv.estimators.filters_math import range_difference_update
 from drake_uuv.sensors.dual_sonar import VALID
 
-__all__ = ["RangeDifferenceKalmanFilter", "kf_predict", "range_difference_update"]
-
-
-def kf_predict(
-    x: np.ndarray, P: np.ndarray, a_W: np.ndarray, A: np.ndarray, B: np.ndarray, Q: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """``Υ̂(k+1|k) = A Υ̂(k) + B a_W(k)``, ``P(k+1|k) = A P Aᵀ + Q`` with ``Q = B W Bᵀ``."""
-    return A @ x + B @ a_W, A @ P @ A.T + Q
+__all__ = ["RangeDifferenceKalmanFilter", "range_difference_update"]
 
 
 class RangeDifferenceKalmanFilter(RelativeStateEstimator):

@@ -90,6 +90,40 @@ def range_noise_covariance(eta: np.ndarray, samples_per_step: int) -> np.ndarray
     return np.diag(eta / float(samples_per_step))
 
 
+def range_difference_noise(
+    noise_model: str, noise_variances: np.ndarray, mean_squared_ranges: np.ndarray
+) -> tuple[float, float]:
+    """Mean ``m`` and variance ``Γ`` of the noise of ``Y = ½(d1² − d2²)``.
+
+    ``mean_squared_ranges`` holds ``mean_f(d_i²)`` per sonar.
+
+    - ``derived`` (design.md §1): ``v̄ = d̄1 v1 − d̄2 v2 + ½(v1² − v2²)``, so
+      ``m = ½(η1 − η2)`` and ``Γ = η1 d̄1² + η2 d̄2² + ½(η1² + η2²)`` with
+      ``d̄i² ≈ max(mean_f(di²) − ηi, 0)``.
+    - ``paper_printed``: the paper's ``m = η1 + η2`` and
+      ``Γ = 2η1² + 2η2² + 4(mean(d1²) − η1)η1 + 4(mean(d2²) − η2)η2``, kept to measure the
+      difference; it is not consistent with the paper's own ``Y``.
+    """
+    eta1, eta2 = noise_variances
+    if noise_model == "derived":
+        true_squared = np.maximum(mean_squared_ranges - noise_variances, 0.0)
+        m = 0.5 * (eta1 - eta2)
+        gamma = eta1 * true_squared[0] + eta2 * true_squared[1] + 0.5 * (eta1**2 + eta2**2)
+        return m, gamma
+    if noise_model == "paper_printed":
+        m = eta1 + eta2
+        gamma = (
+            2 * eta1**2
+            + 2 * eta2**2
+            + 4 * (mean_squared_ranges[0] - eta1) * eta1
+            + 4 * (mean_squared_ranges[1] - eta2) * eta2
+        )
+        return m, gamma
+    raise ValueError(
+        f"estimator.noise_model: must be derived or paper_printed, got {noise_model!r}"
+    )
+
+
 def range_difference_measurement(
     ranges: np.ndarray, variances: np.ndarray, squared_ranges: np.ndarray | None = None
 ) -> tuple[float, float, float]:
@@ -108,11 +142,8 @@ def range_difference_measurement(
     z = np.asarray(ranges, dtype=float).reshape(2)
     s2 = np.asarray(variances, dtype=float).reshape(2)
     sq = z * z if squared_ranges is None else np.asarray(squared_ranges, dtype=float).reshape(2)
-    d_sq = np.maximum(sq - s2, 0.0)
-    Y = 0.5 * (z[0] ** 2 - z[1] ** 2)
-    m = 0.5 * (s2[0] - s2[1])
-    Gamma = s2[0] * d_sq[0] + s2[1] * d_sq[1] + 0.5 * (s2[0] ** 2 + s2[1] ** 2)
-    return float(Y), float(m), float(Gamma)
+    m, Gamma = range_difference_noise("derived", s2, sq)
+    return float(0.5 * (z[0] ** 2 - z[1] ** 2)), float(m), float(Gamma)
 
 
 def linear_measurement_matrix(q_s: np.ndarray) -> np.ndarray:

@@ -8,41 +8,10 @@ from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
 
+from drake_uuv.estimators.range_model import range_difference_noise
 from drake_uuv.so3 import norm
 
-
-def range_difference_noise(
-    noise_model: str, noise_variances: np.ndarray, mean_squared_ranges: np.ndarray
-) -> tuple[float, float]:
-    """Mean ``m`` and variance ``Γ`` of the noise of ``Y = ½(d1² − d2²)``.
-
-    ``mean_squared_ranges`` holds ``mean_f(d_i²)`` per sonar.
-
-    - ``derived`` (design.md §1): ``v̄ = d̄1 v1 − d̄2 v2 + ½(v1² − v2²)``, so
-      ``m = ½(η1 − η2)`` and ``Γ = η1 d̄1² + η2 d̄2² + ½(η1² + η2²)`` with
-      ``d̄i² ≈ max(mean_f(di²) − ηi, 0)``.
-    - ``paper_printed``: the paper's ``m = η1 + η2`` and
-      ``Γ = 2η1² + 2η2² + 4(mean(d1²) − η1)η1 + 4(mean(d2²) − η2)η2``, kept to measure the
-      difference; it is not consistent with the paper's own ``Y``.
-    """
-    eta1, eta2 = noise_variances
-    if noise_model == "derived":
-        true_squared = np.maximum(mean_squared_ranges - noise_variances, 0.0)
-        m = 0.5 * (eta1 - eta2)
-        gamma = eta1 * true_squared[0] + eta2 * true_squared[1] + 0.5 * (eta1**2 + eta2**2)
-        return m, gamma
-    if noise_model == "paper_printed":
-        m = eta1 + eta2
-        gamma = (
-            2 * eta1**2
-            + 2 * eta2**2
-            + 4 * (mean_squared_ranges[0] - eta1) * eta1
-            + 4 * (mean_squared_ranges[1] - eta2) * eta2
-        )
-        return m, gamma
-    raise ValueError(
-        f"estimator.noise_model: must be derived or paper_printed, got {noise_model!r}"
-    )
+__all__ = ["DualSonar", "SonarFaults", "range_difference_noise"]
 
 
 # Per-sonar return status, the ``status`` output port.
