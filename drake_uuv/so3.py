@@ -41,9 +41,7 @@ def exp_so3(rotation_vector: np.ndarray) -> np.ndarray:
     if theta < _SMALL_ANGLE:
         return _I3 + K + 0.5 * (K @ K)
     return (
-        _I3
-        + (math.sin(theta) / theta) * K
-        + ((1.0 - math.cos(theta)) / (theta * theta)) * (K @ K)
+        _I3 + (math.sin(theta) / theta) * K + ((1.0 - math.cos(theta)) / (theta * theta)) * (K @ K)
     )
 
 
