@@ -1,5 +1,6 @@
 """Attitude commands that make the sonar baseline persistently exciting (Algorithms 1 and 2)."""
 
+import functools
 import math
 
 import numpy as np
@@ -85,6 +86,8 @@ class AttitudeGenerator(LeafSystem):
         self._b_norm = float(np.linalg.norm(self._b))
         self._rho, self._h_amplitude, self._h_frequency = rho, h_amplitude, h_frequency
         self._max_rate = max_angular_rate
+        # R̄(k) of Algorithm 2 depends on k alone: every run of a Monte Carlo study reuses it.
+        self._trajectory_attitude = functools.lru_cache(maxsize=4096)(self._trajectory_attitude)
         self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
         self._noise_port = (
             self.DeclareVectorInputPort("rotation_noise", 4, RandomDistribution.kGaussian)

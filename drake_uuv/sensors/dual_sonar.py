@@ -193,9 +193,8 @@ class DualSonar(LeafSystem):
         if status.any():
             samples[status != VALID] = np.nan
         d1, d2 = samples[:, 0]
-        m, gamma = range_difference_noise(
-            self._noise_model, self._eta, np.mean(samples * samples, axis=1)
-        )
+        mean_squares = (samples * samples).sum(axis=1) / self._f
+        m, gamma = range_difference_noise(self._noise_model, self._eta, mean_squares)
         value.set_value(
             _Measurement(samples, 0.5 * (d1 * d1 - d2 * d2), m, gamma, q_s, status, multipath)
         )
