@@ -27,6 +27,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter  # noqa: E402
 
 from drake_uuv.analysis.stats import nees_band  # noqa: E402
 from drake_uuv.io import save_figure_atomic  # noqa: E402
@@ -64,6 +65,13 @@ def _set_margins(figure: Figure, hspace: float = 0.08) -> None:
         top=1.0 - 0.35 / height,
         hspace=hspace,
     )
+
+
+def _readable_log_ticks(axis: plt.Axes) -> None:
+    """Log y axis labelled at 1, 2, 5 × 10ⁿ in plain numbers, without minor labels."""
+    axis.yaxis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
+    axis.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+    axis.yaxis.set_minor_formatter(NullFormatter())
 
 
 def _title(scenario: Scenario) -> str:
@@ -276,6 +284,7 @@ def nees_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
     _set_margins(figure)
     axis.axhspan(low, high, color="tab:green", alpha=0.15, label="χ²(6) 95 % band")
     axis.semilogy(k, np.maximum(nees, 1e-6), color="tab:blue", lw=0.6, label="NEES")
+    _readable_log_ticks(axis)
     axis.axhline(STATE_DIMENSION, color="tab:green", lw=0.8, ls="--", label="6 (consistent)")
     axis.hlines(float(np.mean(steady)), start, k[-1], color="black", lw=1.2, label="mean, k ≥ ss")
     axis.axvline(start, color="0.6", lw=0.8, ls="--")
@@ -348,6 +357,7 @@ def band_figure(
             axis.plot(k, rms, color=color, lw=0.9, ls="--", label="RMS over runs")
             axis.plot(k, bounds[key], color=BOUND_COLOR, lw=1.0, label="PCRLB")
         axis.set_yscale("log")
+        _readable_log_ticks(axis)
         axis.set_ylabel(label)
         axis.grid(True, which="both", alpha=0.3)
         axis.legend(fontsize=8, loc="upper right")
@@ -356,12 +366,13 @@ def band_figure(
     axes[3].axhspan(low, high, color="tab:green", alpha=0.2, label=f"χ²(6·{runs})/{runs} 95 %")
     axes[3].plot(k, mean_nees, color="tab:blue", lw=0.8, label=f"mean NEES over {runs} runs")
     axes[3].axhline(STATE_DIMENSION, color="tab:green", lw=0.8, ls="--")
-    axes[3].set_yscale("log")
     axes[3].set_ylabel("NEES")
     axes[3].set_xlabel("step k")
     axes[3].grid(True, which="both", alpha=0.3)
     axes[3].legend(fontsize=8, loc="upper right")
     for axis in axes:
         axis.axvline(scenario.steady_state_start, color="0.6", lw=0.8, ls="--")
-    axes[0].set_title(title or f"{runs} runs: {_title(scenario)}", fontsize=9)
+    seeds = f"seeds {scenario.random_seed}..{scenario.random_seed + runs - 1}"
+    default = f"{runs} runs: {_title(scenario).rsplit(', seed', 1)[0]}, {seeds}"
+    axes[0].set_title(title or default, fontsize=9)
     return figure
