@@ -272,6 +272,9 @@ def compare(
     rows = [(variant, result.summary) for variant, result in zip(variants, results, strict=True)]
     low, high = ALPHA_PROVEN_INTERVAL
     command = f"drake-uuv compare --runs {runs}" + "".join(f" --set {o}" for o in base_overrides)
+    groups = [name for name, make in VARIANT_GROUPS.items() if set(make()) <= set(variants)]
+    if len(groups) < len(VARIANT_GROUPS):
+        command += "".join(f" --group {name}" for name in groups)
     header = (
         f"# Comparison ({scenario} scenario, {runs} runs per variant)\n\n"
         f"Made by `{command}`. Metrics over the steady-state window; brackets are 95 % "
