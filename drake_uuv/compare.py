@@ -9,11 +9,11 @@ group) and ``DIR/compare.csv`` (one row per variant), with each variant's study 
 mode) adds the ratio tables RMSE / PCRLB (:func:`ratio_tables`) to ``compare.md``, and every
 row of ``compare.csv`` carries the bounds and ratios of its summary.
 
-To add rows (another tracking law, say), add a group::
+To add rows (another estimator or plant, say), add a group::
 
-    VARIANT_GROUPS["tracking"] = lambda: [
-        Variant("paper", "tracking law", ("tracking.type=paper",)),
-        Variant("lqr", "tracking law", ("tracking.type=lqr",)),
+    VARIANT_GROUPS["plant"] = lambda: [
+        Variant("kinematic", "plant", ("plant.type=kinematic",)),
+        ...
     ]
 
 or pass ``groups=`` to :func:`compare`.
@@ -104,11 +104,27 @@ def estimator_attitude_variants() -> list[Variant]:
     ]
 
 
+def tracking_law_variants() -> list[Variant]:
+    """The paper's law and the LQR law, with and without a 7 m/s² acceleration limit (what a
+    ~31 kg hovering vehicle with 77.6 N thrusters manages), under Algorithms 2 and 1."""
+    return [
+        Variant(
+            f"{mode}-{law}{tag}",
+            "tracking law × attitude mode",
+            (f"attitude.mode={mode}", f"tracking.type={law}", *extra),
+        )
+        for mode in ("trajectory", "random")
+        for law in ("paper", "lqr")
+        for tag, extra in (("", ()), ("-limit7", ("tracking.max_acceleration=7",)))
+    ]
+
+
 # Group name → its variants. Other features add groups here.
 VARIANT_GROUPS: dict[str, Callable[[], list[Variant]]] = {
     "attitude_noise": attitude_noise_variants,
     "alpha": alpha_sweep_variants,
     "estimator": estimator_attitude_variants,
+    "tracking": tracking_law_variants,
 }
 
 # Columns of the tables: (CSV name, Markdown header, summary key, format).
@@ -120,7 +136,9 @@ _COLUMNS: list[tuple[str, str, str, str]] = [
     ("diverged_fraction", "diverged", "diverged_fraction", ".0%"),
     ("tracking_bounded_fraction", "tracking bounded", "tracking_bounded_fraction", ".0%"),
     ("relative_speed_mean", "mean relative speed [m/s]", "relative_speed_mean", ".3g"),
+    ("relative_speed_peak", "peak relative speed [m/s]", "relative_speed_peak", ".3g"),
     ("acceleration_mean", "mean acceleration [m/s²]", "acceleration_mean", ".3g"),
+    ("acceleration_peak", "peak acceleration [m/s²]", "acceleration_peak", ".3g"),
 ]
 
 
@@ -228,7 +246,7 @@ def csv_table(rows: Sequence[tuple[Variant, dict[str, Any]]]) -> str:
         header.append(name)
         if name.endswith(("rmse", "nees_mean", "fraction")):
             header += [f"{name}_ci95_low", f"{name}_ci95_high"]
-    header += ["relative_speed_peak", "acceleration_peak", *_BOUND_COLUMNS]
+    header += _BOUND_COLUMNS
     writer.writerow(header)
     for variant, summary in rows:
         row: list[Any] = [variant.group, variant.name, variant.note, " ".join(variant.overrides)]
@@ -237,7 +255,6 @@ def csv_table(rows: Sequence[tuple[Variant, dict[str, Any]]]) -> str:
             row.append(summary.get(name))
             if name.endswith(("rmse", "nees_mean", "fraction")):
                 row += list(summary.get(f"{name}_ci95", [None, None]))
-        row += [summary.get("relative_speed_peak"), summary.get("acceleration_peak")]
         row += [summary.get(name) for name in _BOUND_COLUMNS]
         writer.writerow(["" if v is None else v for v in row])
     return buffer.getvalue()
