@@ -42,8 +42,6 @@ is deleted instead).
 from __future__ import annotations
 
 import itertools
-import os
-import tempfile
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -60,6 +58,8 @@ from pydrake.systems.framework import (
     LeafSystem,
     OutputPort,
 )
+
+from drake_uuv.io import write_text_atomic
 
 __all__ = [
     "LOG_KEYS",
@@ -568,16 +568,7 @@ def record_animation(
     meshcat.PublishRecording()
     html = meshcat.StaticHtml()
 
-    out_html.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out_html.name}.", suffix=".tmp", dir=out_html.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(html)
-        os.replace(tmp, out_html)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return out_html
+    return write_text_atomic(out_html, html)
 
 
 class LiveMeshcatVisualizer(LeafSystem):
