@@ -302,7 +302,7 @@ def compare(
     ratios = ratio_tables(rows)
     if ratios:
         ratios = (
-            "## Estimators against the posterior Cramér–Rao bound\n\n"
+            "\n## Estimators against the posterior Cramér–Rao bound\n\n"
             "Steady-state RMSE over the bound's RMS (√ mean trace), position / velocity. "
             "The bound is for the raw two-range measurement with all f samples, evaluated on "
             "each variant's own true trajectories.\n\n" + ratios
