@@ -65,6 +65,15 @@ import numpy as np
 
 from drake_uuv.estimators.range_model import process_noise_covariance, relative_model_matrices
 
+try:  # the gufunc behind np.linalg.inv, without its per-call checks (same LAPACK call)
+    from numpy.linalg import _umath_linalg
+
+    def _inv(a: np.ndarray) -> np.ndarray:
+        return _umath_linalg.inv(a, signature="d->d")
+
+except (ImportError, AttributeError):  # pragma: no cover - other numpy layouts
+    _inv = np.linalg.inv
+
 
 def _symmetrise(P: np.ndarray) -> np.ndarray:
     return 0.5 * (P + np.swapaxes(P, -1, -2))
@@ -135,6 +144,14 @@ def pcrlb_recursion(
     A, _ = relative_model_matrices(time_step)
     Q = process_noise_covariance(W, time_step)
     P0 = _symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
+    bounds = _pcrlb_loop(M, P0, A, Q)
+    if bounds is None:  # a singular or non-finite step: numpy's checked path raises or agrees
+        bounds = _pcrlb_loop_checked(M, P0, A, Q)
+    return bounds
+
+
+def _pcrlb_loop_checked(M: np.ndarray, P0: np.ndarray, A: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """The recursion of :func:`pcrlb_recursion` through ``np.linalg.inv`` (raises if singular)."""
     P_pred = np.broadcast_to(P0, M.shape[:-3] + (6, 6))
     bounds = np.empty_like(M)
     for k in range(M.shape[-3]):
@@ -142,6 +159,38 @@ def pcrlb_recursion(
             P_pred = _symmetrise(A @ bounds[..., k - 1, :, :] @ A.T + Q)  # (Q + A J⁻¹ Aᵀ)
         J = _symmetrise(np.linalg.inv(P_pred) + M[..., k, :, :])
         bounds[..., k, :, :] = _symmetrise(np.linalg.inv(J))
+    return bounds
+
+
+def _pcrlb_loop(M: np.ndarray, P0: np.ndarray, A: np.ndarray, Q: np.ndarray) -> np.ndarray | None:
+    """The same arithmetic, operation for operation, as :func:`_pcrlb_loop_checked`, without
+    ``np.linalg``'s per-call checks and temporaries (the loop is bound by numpy's per-call
+    cost); None if any bound is not finite, so the caller can take the checked path."""
+    batch = M.shape[:-3]
+    steps = M.shape[-3]
+    bounds = np.empty_like(M)
+    P_pred = np.empty(batch + (6, 6))
+    P_pred[...] = P0
+    AP = np.empty(batch + (6, 6))
+    work = np.empty(batch + (6, 6))
+    AT = A.T
+    with np.errstate(all="ignore"):
+        for k in range(steps):
+            if k > 0:
+                np.matmul(A, bounds[..., k - 1, :, :], out=AP)
+                np.matmul(AP, AT, out=work)
+                work += Q
+                np.add(work, np.swapaxes(work, -1, -2), out=P_pred)
+                P_pred *= 0.5
+            np.add(_inv(P_pred), M[..., k, :, :], out=work)
+            np.add(work, np.swapaxes(work, -1, -2), out=AP)
+            AP *= 0.5
+            J_inv = _inv(AP)
+            out = bounds[..., k, :, :]
+            np.add(J_inv, np.swapaxes(J_inv, -1, -2), out=out)
+            out *= 0.5
+    if not np.isfinite(bounds).all():
+        return None
     return bounds
 
 

@@ -151,3 +151,17 @@ def test_shape_errors_name_the_argument():
         pcrlb_along_trajectory(np.zeros(3), np.zeros((1, 3)), np.eye(6), W, ETA, 1, T)
     with pytest.raises(ValueError, match="Gamma has 2 entries for 3 steps"):
         kf_riccati_covariance(np.ones((3, 3)), np.eye(6), W, np.ones(2), T)
+
+
+def test_recursion_fast_loop_matches_np_linalg_and_still_raises_on_singular() -> None:
+    from drake_uuv.estimators import pcrlb
+
+    rng = np.random.default_rng(3)
+    G = rng.standard_normal((2, 40, 6, 6))
+    M = G @ np.swapaxes(G, -1, -2)
+    A, _ = relative_model_matrices(0.5)
+    Q = process_noise_covariance(0.01 * np.eye(3), 0.5)
+    checked = pcrlb._pcrlb_loop_checked(M, np.eye(6), A, Q)
+    assert np.array_equal(pcrlb.pcrlb_recursion(M, np.eye(6), 0.01 * np.eye(3), 0.5), checked)
+    with pytest.raises(np.linalg.LinAlgError):
+        pcrlb.pcrlb_recursion(np.zeros((3, 6, 6)), np.zeros((6, 6)), np.eye(3), 0.5)
