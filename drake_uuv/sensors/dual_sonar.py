@@ -20,6 +20,11 @@ STATUS_NAMES = {VALID: "valid", DROPPED: "dropped", OUT_OF_BEAM: "out of beam",
                 OUT_OF_RANGE: "out of range"}  # fmt: skip
 
 
+def _clip_at_zero(x: float) -> float:
+    """``np.maximum(x, 0.0)`` for a float (NaN stays NaN)."""
+    return x if x > 0.0 or x != x else 0.0
+
+
 @dataclass
 class SonarFaults:
     """Sensor realism beyond the paper; the defaults switch every effect off.
@@ -123,6 +128,13 @@ class DualSonar(LeafSystem):
         self._f = int(samples_per_step)
         self._noise_model = noise_model
         range_difference_noise(noise_model, self._eta, np.ones(2))  # Fail early on a bad model.
+        # The derived model's constants, computed as range_difference_noise computes them.
+        self._derived_m, gamma_at_zero = range_difference_noise(
+            "derived", self._eta, np.zeros(2) + self._eta
+        )
+        self._derived_gamma_floor = float(gamma_at_zero)
+        self._derived_m = float(self._derived_m)
+        self._eta_floats = tuple(float(e) for e in self._eta)
 
         self._uuv_port = self.DeclareVectorInputPort("uuv_state", 6)
         self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
@@ -171,16 +183,19 @@ class DualSonar(LeafSystem):
     def _calc_measurement(self, context: Context, value: AbstractValue) -> None:
         p_WU = self._uuv_port.Eval(context)[:3]
         p_WT = self._target_port.Eval(context)[:3]
-        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        q_s = R_WB @ self._b
+        q_s = self._attitude_port.Eval(context).reshape(3, 3) @ self._b
         q = p_WU - p_WT
-        true_ranges = np.array([norm(q + 0.5 * q_s), norm(q - 0.5 * q_s)])
+        half = 0.5 * q_s
+        to_s1, to_s2 = q + half, q - half
+        true_ranges = np.array([math.sqrt(float(to_s1 @ to_s1)), math.sqrt(float(to_s2 @ to_s2))])
         noise = self._noise_port.Eval(context).reshape(2, self._f)
         samples = true_ranges[:, np.newaxis] + self._sigma * noise
         status = np.zeros(2)
         multipath = np.zeros(2)
+        faulty = False
         if self._prior_port is not None or self._faults.max_range is not None:
             status = self._geometry_status(context, q, q_s, true_ranges)
+            faulty = True
         if self._faults.random_faults:
             uniform = self._uniform_port.Eval(context)
             dropped = uniform[:2] < self._faults.dropout_probability
@@ -190,11 +205,24 @@ class DualSonar(LeafSystem):
                 outlier, self._faults.outlier_scale * self._multipath_port.Eval(context), 0.0
             )
             samples += multipath[:, np.newaxis]
-        if status.any():
+            faulty = True
+        if faulty and status.any():
             samples[status != VALID] = np.nan
-        d1, d2 = samples[:, 0]
-        mean_squares = (samples * samples).sum(axis=1) / self._f
-        m, gamma = range_difference_noise(self._noise_model, self._eta, mean_squares)
+        if self._f == 1 and self._noise_model == "derived":
+            # The same arithmetic as below on Python floats (a sum of one sample is that
+            # sample; dividing by 1 changes nothing), without a dozen numpy calls.
+            d1, d2 = samples.ravel().tolist()
+            eta1, eta2 = self._eta_floats
+            m = self._derived_m
+            gamma = (
+                eta1 * _clip_at_zero(d1 * d1 - eta1)
+                + eta2 * _clip_at_zero(d2 * d2 - eta2)
+                + self._derived_gamma_floor
+            )
+        else:
+            d1, d2 = samples[:, 0]
+            mean_squares = (samples * samples).sum(axis=1) / self._f
+            m, gamma = range_difference_noise(self._noise_model, self._eta, mean_squares)
         value.set_value(
             _Measurement(samples, 0.5 * (d1 * d1 - d2 * d2), m, gamma, q_s, status, multipath)
         )
@@ -229,25 +257,25 @@ class DualSonar(LeafSystem):
         return self._measurement.Eval(context)
 
     def _calc_ranges(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._get(context).range_samples[:, 0])
+        output.set_value(self._measurement.Eval(context).range_samples[:, 0])
 
     def _calc_samples(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._get(context).range_samples.ravel())
+        output.set_value(self._measurement.Eval(context).range_samples.ravel())
 
     def _calc_Y(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._get(context).Y)
+        output.SetAtIndex(0, self._measurement.Eval(context).Y)
 
     def _calc_m(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._get(context).m)
+        output.SetAtIndex(0, self._measurement.Eval(context).m)
 
     def _calc_Gamma(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._get(context).Gamma)
+        output.SetAtIndex(0, self._measurement.Eval(context).Gamma)
 
     def _calc_q_s(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._get(context).q_s)
+        output.set_value(self._measurement.Eval(context).q_s)
 
     def _calc_status(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._get(context).status)
+        output.set_value(self._measurement.Eval(context).status)
 
     def _calc_multipath(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._get(context).multipath)
+        output.set_value(self._measurement.Eval(context).multipath)
