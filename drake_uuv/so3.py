@@ -31,7 +31,8 @@ def norm(v: np.ndarray) -> float:
 
 def hat(w: np.ndarray) -> np.ndarray:
     """Skew-symmetric matrix with ``hat(w) @ v == cross(w, v)``."""
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    w0, w1, w2 = np.asarray(w).tolist()
+    return np.array([[0.0, -w2, w1], [w2, 0.0, -w0], [-w1, w0, 0.0]])
 
 
 def exp_so3(rotation_vector: np.ndarray) -> np.ndarray:
@@ -47,24 +48,32 @@ def exp_so3(rotation_vector: np.ndarray) -> np.ndarray:
 
 def quaternion_from_matrix(R: np.ndarray) -> np.ndarray:
     """Unit quaternion ``[w, x, y, z]`` with ``w ≥ 0`` (Shepperd's method, stable everywhere)."""
-    trace = R[0, 0] + R[1, 1] + R[2, 2]
-    diagonal = (R[0, 0], R[1, 1], R[2, 2])
-    i = int(np.argmax(diagonal))
+    # Scalar arithmetic on Python floats: the same IEEE operations as on numpy scalars, faster.
+    M = np.asarray(R, dtype=float).tolist()
+    d0, d1, d2 = diagonal = (M[0][0], M[1][1], M[2][2])
+    trace = d0 + d1 + d2
+    if d0 != d0 or d1 != d1 or d2 != d2:
+        i = int(np.argmax(diagonal))  # NaN: argmax's choice (the first NaN)
+    else:
+        i = 0 if d0 >= d1 else 1  # the first largest, as np.argmax
+        if d2 > diagonal[i]:
+            i = 2
     if trace >= diagonal[i]:
         w = 0.5 * math.sqrt(max(1.0 + trace, 0.0))
         s = 0.25 / w
-        q = np.array([w, (R[2, 1] - R[1, 2]) * s, (R[0, 2] - R[2, 0]) * s, (R[1, 0] - R[0, 1]) * s])
+        q = [w, (M[2][1] - M[1][2]) * s, (M[0][2] - M[2][0]) * s, (M[1][0] - M[0][1]) * s]
     else:
         j, k = (i + 1) % 3, (i + 2) % 3
-        v = 0.5 * math.sqrt(max(1.0 + R[i, i] - R[j, j] - R[k, k], 0.0))
+        v = 0.5 * math.sqrt(max(1.0 + M[i][i] - M[j][j] - M[k][k], 0.0))
         s = 0.25 / v
-        q = np.empty(4)
-        q[0] = (R[k, j] - R[j, k]) * s
+        q = [0.0] * 4
+        q[0] = (M[k][j] - M[j][k]) * s
         q[1 + i] = v
-        q[1 + j] = (R[j, i] + R[i, j]) * s
-        q[1 + k] = (R[k, i] + R[i, k]) * s
+        q[1 + j] = (M[j][i] + M[i][j]) * s
+        q[1 + k] = (M[k][i] + M[i][k]) * s
     if q[0] < 0.0:
-        q = -q
+        q = [-c for c in q]
+    q = np.array(q)
     return q / math.sqrt(float(q @ q))
 
 
