@@ -42,18 +42,22 @@ class TrackingController(LeafSystem):
         self._position_gain = 2.0 * alpha / (t * t)
         self._velocity_gain = 2.0 / t
         self._q_star = np.asarray(desired_relative_position_B, dtype=float)
+        self._q_star_floats = self._q_star.tolist()
+        self._neg_position_gain = -self._position_gain
         self._max_acceleration = max_acceleration
         self._x_hat_port = self.DeclareVectorInputPort("x_hat", 6)
         self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
-        self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1)
+        self._u1_port = self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1)
         self.DeclareVectorOutputPort("a_W", 3, self._calc_a_W)
 
     def _u1(self, context: Context) -> np.ndarray:
         x_hat = self._x_hat_port.Eval(context)
         R_BW = self._attitude_port.Eval(context).reshape(3, 3).T
-        u1 = -self._position_gain * (R_BW @ x_hat[:3] - self._q_star) - self._velocity_gain * (
-            R_BW @ x_hat[3:]
-        )
+        # The products stay numpy (BLAS); the element-wise rest, in the same order, on floats.
+        position = (R_BW @ x_hat[:3]).tolist()
+        velocity = (R_BW @ x_hat[3:]).tolist()
+        kp, kv, r = self._neg_position_gain, self._velocity_gain, self._q_star_floats
+        u1 = np.array([kp * (position[i] - r[i]) - kv * velocity[i] for i in range(3)])
         if self._max_acceleration is not None:  # |R u1| = |u1|
             u1_norm = float(np.sqrt(u1 @ u1))
             if u1_norm > self._max_acceleration:
@@ -65,4 +69,4 @@ class TrackingController(LeafSystem):
 
     def _calc_a_W(self, context: Context, output: BasicVector) -> None:
         R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        output.set_value(R_WB @ self.get_output_port(0).Eval(context))
+        output.set_value(R_WB @ self._u1_port.Eval(context))
