@@ -98,9 +98,12 @@ def range_difference_update(
     K = PCt / S
     innovation = Y - float(q_s @ x_pred[:3]) - m
     I_KC = _I6.copy()
-    I_KC[:, :3] -= np.outer(K, q_s)
-    P = I_KC @ P_pred @ I_KC.T + Gamma * np.outer(K, K)
-    return x_pred + K * innovation, _symmetrise(P), innovation * innovation / S
+    I_KC[:, :3] -= K[:, np.newaxis] * q_s  # np.outer's product, without its wrapper
+    P = I_KC @ P_pred @ I_KC.T
+    P += Gamma * (K[:, np.newaxis] * K)
+    P_sym = P + P.T
+    P_sym *= 0.5  # _symmetrise(P), in place
+    return x_pred + K * innovation, P_sym, innovation * innovation / S
 
 
 def _select(
