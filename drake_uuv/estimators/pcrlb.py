@@ -217,6 +217,19 @@ def pcrlb_along_trajectory(
     return pcrlb_recursion(M, P0, W, time_step)
 
 
+def _runs(q_true_runs: np.ndarray, q_s_runs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Checks and broadcasts the (runs×N×3) trajectories of the Monte Carlo bounds."""
+    q = np.asarray(q_true_runs, dtype=float)
+    if q.ndim != 3 or q.shape[2] != 3:
+        raise ValueError(f"q_true_runs must have shape (runs, N, 3), got {q.shape}")
+    qs = np.asarray(q_s_runs, dtype=float)
+    if qs.ndim == 2:
+        qs = np.broadcast_to(qs, q.shape)
+    if qs.shape != q.shape:
+        raise ValueError(f"q_s_runs shape {qs.shape} does not match q_true_runs {q.shape}")
+    return q, qs
+
+
 def pcrlb_monte_carlo(
     q_true_runs: np.ndarray,
     q_s_runs: np.ndarray,
@@ -232,14 +245,7 @@ def pcrlb_monte_carlo(
     when the attitude does not depend on the run). Averages ``H(x_k)ᵀ R⁻¹ H(x_k)`` over runs
     at every k, then runs the recursion once: the expectation of the recursion sits inside J.
     """
-    q = np.asarray(q_true_runs, dtype=float)
-    if q.ndim != 3 or q.shape[2] != 3:
-        raise ValueError(f"q_true_runs must have shape (runs, N, 3), got {q.shape}")
-    qs = np.asarray(q_s_runs, dtype=float)
-    if qs.ndim == 2:
-        qs = np.broadcast_to(qs, q.shape)
-    if qs.shape != q.shape:
-        raise ValueError(f"q_s_runs shape {qs.shape} does not match q_true_runs {q.shape}")
+    q, qs = _runs(q_true_runs, q_s_runs)
     M = np.zeros((q.shape[1], 6, 6))
     for run in range(q.shape[0]):
         M += measurement_information(q[run], qs[run], eta, samples_per_step)
@@ -261,14 +267,7 @@ def pcrlb_per_run_mean(
     on every trajectory attains; report it beside :func:`pcrlb_monte_carlo`. Arguments as
     there.
     """
-    q = np.asarray(q_true_runs, dtype=float)
-    if q.ndim != 3 or q.shape[2] != 3:
-        raise ValueError(f"q_true_runs must have shape (runs, N, 3), got {q.shape}")
-    qs = np.asarray(q_s_runs, dtype=float)
-    if qs.ndim == 2:
-        qs = np.broadcast_to(qs, q.shape)
-    if qs.shape != q.shape:
-        raise ValueError(f"q_s_runs shape {qs.shape} does not match q_true_runs {q.shape}")
+    q, qs = _runs(q_true_runs, q_s_runs)
     total = np.zeros((q.shape[1], 6, 6))
     for run in range(q.shape[0]):
         total += pcrlb_along_trajectory(q[run], qs[run], P0, W, eta, samples_per_step, time_step)
