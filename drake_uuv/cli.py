@@ -39,7 +39,8 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="override a scenario field, e.g. --set attitude.mode=fixed (repeatable)",
+        help="override a scenario field, e.g. --set tracking.alpha=1.0, or switch a slot's "
+        "variant, e.g. --set attitude=!FixedAttitude (repeatable)",
     )
 
 
@@ -150,10 +151,12 @@ def _diagram(args: argparse.Namespace) -> int:
     if args.max_depth < 1:
         raise UsageError(f"--max-depth: must be ≥ 1, got {args.max_depth}")
     if args.all_variants:
-        written = export_all_variants(Path(args.out), args.max_depth)
+        written = export_all_variants(Path(args.out), args.max_depth, args.show_loggers)
     else:
         scenario = scenario_from_args(args)
-        written = export_diagram(scenario, Path(args.out), args.name, args.max_depth)
+        written = export_diagram(
+            scenario, Path(args.out), args.name, args.max_depth, args.show_loggers
+        )
     print("wrote " + ", ".join(str(p) for p in written))
     if not any(p.suffix == ".svg" for p in written):
         print("Graphviz's dot is not installed: wrote the .dot only (apt-get install graphviz)")
@@ -169,7 +172,12 @@ def _add_diagram(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--all-variants",
         action="store_true",
-        help="export every variant the package builds (attitude modes, estimators, laws)",
+        help="export every variant the package builds (each slot's variants, sonar faults)",
+    )
+    parser.add_argument(
+        "--show-loggers",
+        action="store_true",
+        help="draw the run's loggers too (one per logged signal; hidden by default)",
     )
     parser.set_defaults(handler=_diagram)
 

@@ -12,7 +12,7 @@ row of ``compare.csv`` carries the bounds and ratios of its summary.
 To add rows (another estimator or plant, say), add a group::
 
     VARIANT_GROUPS["plant"] = lambda: [
-        Variant("kinematic", "plant", ("plant.type=kinematic",)),
+        Variant("kinematic", "plant", ("plant=!KinematicUuv",)),
         ...
     ]
 
@@ -37,13 +37,13 @@ from drake_uuv.montecarlo import (
     execution_options,
     run_studies,
 )
-from drake_uuv.scenario import (
-    ALPHA_PROVEN_INTERVAL,
-    ATTITUDE_MODES,
-    ESTIMATOR_TYPES,
-    NOISE_MODELS,
-    load_scenario,
-)
+from drake_uuv.scenario import ALPHA_PROVEN_INTERVAL, NOISE_MODELS, load_scenario
+
+# Variant tags of the slots the groups combine (the names in a variant's name in brackets).
+ATTITUDE_MODES = {"fixed": "FixedAttitude", "random": "RandomAttitude",
+                  "trajectory": "TrajectoryAttitude"}  # fmt: skip
+ESTIMATOR_TYPES = {"kf": "PaperKf", "ekf": "Ekf", "iekf": "Iekf"}
+TRACKING_LAWS = {"paper": "PaperTracking", "lqr": "LqrTracking"}
 
 
 @dataclass(frozen=True)
@@ -63,7 +63,7 @@ def attitude_noise_variants() -> list[Variant]:
         Variant(
             f"{mode}-{noise}",
             "attitude × noise model",
-            (f"attitude.mode={mode}", f"estimator.noise_model={noise}"),
+            (f"attitude=!{ATTITUDE_MODES[mode]}", f"estimator.noise_model={noise}"),
         )
         for mode in ATTITUDE_MODES
         for noise in NOISE_MODELS
@@ -97,7 +97,7 @@ def estimator_attitude_variants() -> list[Variant]:
         Variant(
             f"{estimator}-{mode}",
             ESTIMATOR_GROUP,
-            (f"estimator.type={estimator}", f"attitude.mode={mode}"),
+            (f"estimator=!{ESTIMATOR_TYPES[estimator]}", f"attitude=!{ATTITUDE_MODES[mode]}"),
         )
         for estimator in ESTIMATOR_TYPES
         for mode in ATTITUDE_MODES
@@ -111,7 +111,7 @@ def tracking_law_variants() -> list[Variant]:
         Variant(
             f"{mode}-{law}{tag}",
             "tracking law × attitude mode",
-            (f"attitude.mode={mode}", f"tracking.type={law}", *extra),
+            (f"attitude=!{ATTITUDE_MODES[mode]}", f"tracking=!{TRACKING_LAWS[law]}", *extra),
         )
         for mode in ("trajectory", "random")
         for law in ("paper", "lqr")
@@ -204,13 +204,15 @@ def ratio_tables(rows: Sequence[tuple[Variant, dict[str, Any]]]) -> str:
     Two tables from the rows of the ``estimator`` group (empty string if there are none):
     against the Monte Carlo PCRLB (the proven bound) and against the mean of the per-run
     bounds (what a run-by-run efficient estimator attains; see
-    :mod:`drake_uuv.estimators.pcrlb`). Each cell is ``position / velocity``.
+    :mod:`drake_uuv.models.pcrlb`). Each cell is ``position / velocity``.
     """
     cells: dict[tuple[str, str], dict[str, Any]] = {}
     for variant, summary in rows:
         if variant.group == ESTIMATOR_GROUP:
             settings = _settings(variant)
-            cells[settings["estimator.type"], settings["attitude.mode"]] = summary
+            estimator = settings["estimator"].removeprefix("!")
+            mode = settings["attitude"].removeprefix("!")
+            cells[estimator, mode] = summary
     if not cells:
         return ""
     estimators = list(dict.fromkeys(estimator for estimator, _ in cells))

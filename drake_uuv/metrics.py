@@ -2,10 +2,9 @@
 
 import numpy as np
 
-from drake_uuv.controllers.lqr_tracking_controller import closed_loop_eigenvalues
-from drake_uuv.estimators.pcrlb import bound_rmse, measurement_information, pcrlb_recursion
+from drake_uuv.models.measurement import VALID, range_difference_noise
+from drake_uuv.models.pcrlb import bound_rmse, measurement_information, pcrlb_recursion
 from drake_uuv.scenario import Scenario
-from drake_uuv.sensors.dual_sonar import VALID, range_difference_noise
 
 
 def errors(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, np.ndarray]:
@@ -15,15 +14,17 @@ def errors(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, np.ndarr
     - ``tracking`` (N×3): ``q − R q*``, the offset from the desired relative position.
     - ``nees`` (N): ``eᵀ P⁻¹ e`` for the 6-D estimation error ``e``.
     """
-    q = log["p_uuv"] - log["p_target"]
-    velocity = log["v_uuv"] - log["v_target"]
-    e = np.concatenate([q - log["q_hat"], velocity - log["v_hat"]], axis=1)
+    q = log["p_WU"] - log["p_WT"]
+    velocity = log["v_WU"] - log["v_WT"]
+    e = np.concatenate([q, velocity], axis=1) - log["x_TU_hat"]
     q_star = np.asarray(scenario.tracking.desired_relative_position)
     return {
         "position": e[:, :3],
         "velocity": e[:, 3:],
         "tracking": q - log["R_WB"] @ q_star,
-        "nees": np.einsum("ki,ki->k", e, np.linalg.solve(log["P"], e[:, :, np.newaxis])[:, :, 0]),
+        "nees": np.einsum(
+            "ki,ki->k", e, np.linalg.solve(log["P_TU"], e[:, :, np.newaxis])[:, :, 0]
+        ),
         "relative_velocity": velocity,
     }
 
@@ -37,8 +38,8 @@ def run_information(log: dict[str, np.ndarray], scenario: Scenario) -> np.ndarra
     """
     available = log["sonar_status"] == VALID if "sonar_status" in log else None
     return measurement_information(
-        log["p_uuv"] - log["p_target"],
-        log["q_s"],
+        log["p_WU"] - log["p_WT"],
+        log["b_W"],
         np.asarray(scenario.sonar.noise_variances, dtype=float),
         scenario.sonar.samples_per_step,
         available,
@@ -57,11 +58,11 @@ def bound_covariances(log: dict[str, np.ndarray], scenario: Scenario) -> dict[st
       the paper's KF when its noise model is right, what it would reach on this trajectory.
     """
     e = scenario.estimator
-    q = log["p_uuv"] - log["p_target"]
+    q = log["p_WU"] - log["p_WT"]
     eta = np.asarray(scenario.sonar.noise_variances, dtype=float)[:, np.newaxis]
     P0 = np.asarray(e.initial_covariance, dtype=float)
     W = np.asarray(scenario.target.acceleration_covariance, dtype=float)
-    q_s = log["q_s"]
+    q_s = log["b_W"]
     half = 0.5 * q_s
     squared = np.stack([np.sum((q + half) ** 2, axis=1), np.sum((q - half) ** 2, axis=1)])
     # Mean of the squared noisy ranges is d² + η: the noise model then sees the true d².
@@ -93,9 +94,6 @@ def run_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, flo
       speed [m/s]; ``acceleration_mean``/``_peak``: mean and largest |R u1|, the commanded
       (after any limit, i.e. applied) world acceleration [m/s²]. These measure what the
       tracking law asks of the vehicle.
-    - ``tracking_spectral_radius``: the largest |eigenvalue| of the tracking law's closed loop
-      ``A − B K`` on the relative double integrator (< 1: the error dynamics are stable;
-      the paper's law has 1, its undamped velocity mode). The same for every run of a scenario.
     - ``pcrlb_position_rmse``, ``pcrlb_velocity_rmse``: √(mean over the window of the trace
       of the position/velocity block) of the PCRLB along this run's true trajectory, and
       ``kf_riccati_position_rmse``, ``kf_riccati_velocity_rmse`` the same of the paper's KF's
@@ -104,7 +102,7 @@ def run_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, flo
     e = errors(log, scenario)
     window = slice(scenario.steady_state_start, None)
     speed = np.linalg.norm(e["relative_velocity"][window], axis=1)
-    acceleration = np.linalg.norm(log["a_world"][window], axis=1)
+    acceleration = np.linalg.norm(log["u1_W"][window], axis=1)
     return {
         "position_rmse": rms_norm(e["position"][window]),
         "velocity_rmse": rms_norm(e["velocity"][window]),
@@ -115,7 +113,6 @@ def run_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, flo
         "relative_speed_peak": float(np.max(speed)),
         "acceleration_mean": float(np.mean(acceleration)),
         "acceleration_peak": float(np.max(acceleration)),
-        "tracking_spectral_radius": float(np.max(np.abs(closed_loop_eigenvalues(scenario)))),
         **bound_metrics(log, scenario),
     }
 

@@ -40,7 +40,7 @@ class EstimatorHealthMonitor:
 
     It fails the run, rather than let NaNs or a meaningless estimate flow into the log, when:
 
-    - ``x_hat`` or ``P`` is not finite;
+    - ``x_TU_hat`` or ``P_TU`` is not finite;
     - ``P`` is not symmetric (relative asymmetry above ``symmetry_tolerance``) or not
       positive definite (its Cholesky factorisation fails);
     - the innovations blow up: the *median* NIS of the last ``nis_window`` updates exceeds
@@ -59,8 +59,8 @@ class EstimatorHealthMonitor:
     ) -> None:
         self._estimator = estimator
         self._time_step = time_step
-        self._x_hat = estimator.GetOutputPort("x_hat")
-        self._P = estimator.GetOutputPort("P")
+        self._x_hat = estimator.GetOutputPort("x_TU_hat")
+        self._P = estimator.GetOutputPort("P_TU")
         self._nis = estimator.GetOutputPort("nis")
         self._recent_nis: deque[float] = deque(maxlen=nis_window)
         self._nis_sum = 0.0

@@ -21,7 +21,7 @@ Outputs of a study folder ``DIR``:
   its χ² band, and the RMS error over runs beside the Monte Carlo PCRLB.
 
 The Monte Carlo PCRLB averages each run's measurement information ``M(k)`` over runs
-(:func:`drake_uuv.estimators.pcrlb.pcrlb_monte_carlo`). A chunk returns the *sum* over its
+(:func:`drake_uuv.models.pcrlb.pcrlb_monte_carlo`). A chunk returns the *sum* over its
 runs of ``M(k)`` (position block, N×3×3), not per-run arrays, in fixed point (integers,
 :func:`information_exponent`): integer sums are exact, so the total, and the bound, are the
 same whatever the chunking, the order or the number of workers.
@@ -532,7 +532,7 @@ def monte_carlo_bound(information_sum: np.ndarray, runs: int, scenario: Scenario
     """The Monte Carlo PCRLB (steps × 6 × 6) from :func:`load_information`'s sum: the
     recursion once on the information averaged over runs, prior ``estimator.initial_covariance``.
     """
-    from drake_uuv.estimators.pcrlb import pcrlb_recursion
+    from drake_uuv.models.pcrlb import pcrlb_recursion
 
     return pcrlb_recursion(
         information_sum / runs,
@@ -549,7 +549,7 @@ def bound_summary(
     information_sum: np.ndarray | None,
 ) -> dict[str, Any]:
     """The bounds of a study and the RMSEs' ratios to them (see :func:`summarize`)."""
-    from drake_uuv.estimators.pcrlb import bound_rmse
+    from drake_uuv.models.pcrlb import bound_rmse
 
     out: dict[str, Any] = {}
     bounds: dict[str, tuple[float, float]] = {}

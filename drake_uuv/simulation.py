@@ -9,10 +9,12 @@ import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Context
 
 from drake_uuv.diagram import UuvDiagram, make_uuv_diagram
 from drake_uuv.io import write_json_atomic, write_npz_atomic
 from drake_uuv.metrics import run_metrics
+from drake_uuv.models.tracking_laws import closed_loop_eigenvalues
 from drake_uuv.monitor import EstimatorHealthMonitor, SimulationFailure
 from drake_uuv.scenario import Scenario
 
@@ -36,36 +38,24 @@ class SimulationResult:
         write_json_atomic(out_dir / "metrics.json", self.metrics)
 
 
-def log_from_loggers(built: UuvDiagram, context, scenario: Scenario) -> dict[str, np.ndarray]:
-    """Turns the loggers' columns into the named per-step arrays of ``log.npz``."""
-    data = {name: logger.FindLog(context).data().T.copy() for name, logger in built.loggers.items()}
-    n = scenario.steps
-    data = {name: value[:n] for name, value in data.items()}
-    times = built.loggers["uuv_state"].FindLog(context).sample_times()[:n]
-    return {
-        "k": np.arange(n),
-        "time": times.copy(),
-        "p_uuv": data["uuv_state"][:, :3],
-        "v_uuv": data["uuv_state"][:, 3:],
-        "R_WB": data["R_WB"].reshape(n, 3, 3),
-        "p_target": data["target_state"][:, :3],
-        "v_target": data["target_state"][:, 3:],
-        "ranges": data["ranges"],
-        "Y": data["Y"][:, 0],
-        "m": data["m"][:, 0],
-        "Gamma": data["Gamma"][:, 0],
-        "q_s": data["q_s"],
-        "q_hat": data["x_hat"][:, :3],
-        "v_hat": data["x_hat"][:, 3:],
-        "P": data["P"].reshape(n, 6, 6),
-        "u1": data["u1_B"],
-        "u2": data["w_W"],
-        "a_world": data["a_W"],
-        "sonar_status": data["sonar_status"].astype(np.int8),
-        "multipath": data["multipath"],
-        "measurement_status": data["measurement_status"][:, 0].astype(np.int8),
-        "nis": data["nis"][:, 0],
-    }
+def log_from_loggers(built: UuvDiagram, context: Context, steps: int) -> dict[str, np.ndarray]:
+    """The loggers' columns as the named per-step arrays of ``log.npz``.
+
+    One array per logged signal (:mod:`drake_uuv.signals`), keyed by its name, row k the
+    value at step k shaped as the signal's ``shape`` (scalars as a vector of N), plus ``k``
+    and ``time``.
+    """
+    log: dict[str, np.ndarray] = {"k": np.arange(steps)}
+    for name, logger in built.loggers.items():
+        found = logger.FindLog(context)
+        if "time" not in log:
+            log["time"] = found.sample_times()[:steps].copy()
+        signal = built.signals[name]
+        data = found.data().T[:steps]
+        shape = signal.shape if all(n > 0 for n in signal.shape) else (-1,)
+        data = data.reshape(len(data), *shape).copy()
+        log[name] = data.astype(np.int8) if signal.integer else data
+    return log
 
 
 def _monitor_message(error: RuntimeError) -> str:
@@ -95,6 +85,11 @@ class ClosedLoopSimulation:
         self.built = make_uuv_diagram(scenario, meshcat=meshcat)
         self.diagram = self.built.diagram
         self.monitor = EstimatorHealthMonitor(self.built.systems["estimator"], scenario.time_step)
+        gain = self.built.systems["tracking_controller"].gain
+        # The same for every run: the tracking law's closed loop on the relative model.
+        self.tracking_spectral_radius = float(
+            np.max(np.abs(closed_loop_eigenvalues(scenario.time_step, gain)))
+        )
 
     def run(self, seed: int | None = None, realtime_rate: float = 0.0) -> SimulationResult:
         """One run with ``seed`` (default: the scenario's ``random_seed``).
@@ -120,9 +115,10 @@ class ClosedLoopSimulation:
             raise SimulationFailure(
                 f"seed {scenario.random_seed}: run stopped: {_monitor_message(e)}"
             ) from e
-        log = log_from_loggers(self.built, context, scenario)
+        log = log_from_loggers(self.built, context, scenario.steps)
         metrics = run_metrics(log, scenario)
         metrics.update(
+            tracking_spectral_radius=self.tracking_spectral_radius,
             steps=scenario.steps,
             seed=scenario.random_seed,
             wall_time_s=time.perf_counter() - start,

@@ -32,7 +32,7 @@ from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter  # n
 from drake_uuv.analysis.stats import nees_band  # noqa: E402
 from drake_uuv.io import save_figure_atomic  # noqa: E402
 from drake_uuv.metrics import bound_covariances, errors  # noqa: E402
-from drake_uuv.scenario import Scenario  # noqa: E402
+from drake_uuv.scenario import Scenario, describe  # noqa: E402
 
 ESTIMATION_COLOR = "tab:red"
 TRACKING_COLOR = "tab:blue"
@@ -75,10 +75,7 @@ def _readable_log_ticks(axis: plt.Axes) -> None:
 
 
 def _title(scenario: Scenario) -> str:
-    return (
-        f"{scenario.attitude.mode} attitude, {scenario.estimator.noise_model} noise model, "
-        f"α = {scenario.tracking.alpha:g}, seed {scenario.random_seed}"
-    )
+    return f"{describe(scenario)}, seed {scenario.random_seed}"
 
 
 def _zoom_window(steps: int) -> tuple[int, int] | None:
@@ -154,8 +151,8 @@ def error_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
 
 def sensor_positions(log: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """World positions of the sonars: ``s1 = p + ½ q_s``, ``s2 = p − ½ q_s`` (N×3 each)."""
-    half = 0.5 * log["q_s"]
-    return log["p_uuv"] + half, log["p_uuv"] - half
+    half = 0.5 * log["b_W"]
+    return log["p_WU"] + half, log["p_WU"] - half
 
 
 def _equal_aspect(axis, points: np.ndarray) -> None:
@@ -186,7 +183,7 @@ def trajectory_figure(
     start, end = max(0, window[0]), min(steps - 1, window[1])
     selected = slice(start, end + 1)
     marks = slice(start, end + 1, marker_every)
-    target, uuv = log["p_target"], log["p_uuv"]
+    target, uuv = log["p_WT"], log["p_WU"]
     s1, s2 = sensor_positions(log)
 
     figure = plt.figure(figsize=(10, 7))
@@ -213,7 +210,7 @@ def _attitude_inset(axis, log: dict[str, np.ndarray], start: int, frames: int) -
     rather than at the UUV's positions, where they would overlap: the inset shows how the
     attitude changes from step to step.
     """
-    R_WB, q_s = log["R_WB"], log["q_s"]
+    R_WB, q_s = log["R_WB"], log["b_W"]
     indices = list(range(start, min(len(R_WB), start + frames)))
     columns = max(1, (len(indices) + 1) // 2)
     rows = (len(indices) + columns - 1) // columns
@@ -253,7 +250,7 @@ def excitation_eigenvalues(q_s: np.ndarray, window: int) -> tuple[np.ndarray, np
 def excitation_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
     """λ_min and λ_max of the windowed Σ q_s q_sᵀ (persistent excitation, paper eq. 10)."""
     n = scenario.analysis.pe_window
-    low, high = excitation_eigenvalues(log["q_s"], n)
+    low, high = excitation_eigenvalues(log["b_W"], n)
     xi2 = float(np.dot(scenario.sonar.baseline, scenario.sonar.baseline))
     figure, axis = plt.subplots(figsize=(8, 4))
     _set_margins(figure)

@@ -10,6 +10,7 @@ import numpy as np  # noqa: E402
 
 from drake_uuv.io import save_figure_atomic  # noqa: E402
 from drake_uuv.metrics import errors  # noqa: E402
+from drake_uuv.scenario import describe  # noqa: E402
 from drake_uuv.simulation import SimulationResult  # noqa: E402
 
 
@@ -33,9 +34,8 @@ def plot_errors(result: SimulationResult, path: Path) -> Path:
         axis.grid(True, which="both", alpha=0.3)
     m = result.metrics
     figure.suptitle(
-        f"{result.scenario.attitude.mode} attitude, {result.scenario.estimator.noise_model} noise "
-        f"model, seed {result.scenario.random_seed}: position RMSE {m['position_rmse']:.3f} m, "
-        f"tracking RMSE {m['tracking_rmse']:.3f} m (k ≥ {start})",
+        f"{describe(result.scenario)}, seed {result.scenario.random_seed}: position RMSE "
+        f"{m['position_rmse']:.3f} m, tracking RMSE {m['tracking_rmse']:.3f} m (k ≥ {start})",
         fontsize=9,
     )
     save_figure_atomic(figure, path, dpi=120)

@@ -15,13 +15,9 @@ from pydrake.systems.framework import (
 )
 
 from drake_uuv.analysis.stats import chi2_ppf
-from drake_uuv.estimators.filters_math import predict
-from drake_uuv.plants.double_integrator import double_integrator
-from drake_uuv.sensors.dual_sonar import VALID
-
-# The step's measurement status (``measurement_status`` output): the sonar codes
-# (VALID = 0 the measurement was used, DROPPED = 1, OUT_OF_BEAM = 2, OUT_OF_RANGE = 3), or:
-GATED = 4  # rejected by the NIS gate
+from drake_uuv.models.filters import predict
+from drake_uuv.models.measurement import GATED, VALID
+from drake_uuv.models.motion import double_integrator, process_noise_covariance
 
 
 @dataclass
@@ -50,8 +46,9 @@ class RelativeStateEstimator(LeafSystem):
     Discrete state: the *predicted* ``Υ̂(k|k−1)`` (group 0) and ``P(k|k−1)`` (group 1), and
     any groups a subclass declares and advances in :meth:`advance_extra_state`. The
     filtered estimate of step k is a direct-feedthrough output of the measurement inputs only
-    (never of ``a_W``), so the controller acts on ``Υ̂(k|k)`` in the same tick as in the
-    paper, and the periodic update predicts ``Υ̂(k+1|k) = A Υ̂(k|k) + B a_W(k)``,
+    (never of ``u1_W``), so the controller acts on ``Υ̂(k|k)`` in the same tick as in the
+    paper, and the periodic update predicts ``Υ̂(k+1|k) = A Υ̂(k|k) + B a_W(k)``, with
+    ``a_W = R u1`` the vehicle's applied world acceleration (port ``u1_W``),
     ``P(k+1|k) = A P Aᵀ + B W Bᵀ``.
 
     Steps without a usable measurement (a sonar status other than VALID, as the subclass
@@ -61,10 +58,12 @@ class RelativeStateEstimator(LeafSystem):
     Common ports, after the subclass's measurement inputs:
 
     - input ``sonar_status`` (2): the sonar's per-sonar return status.
-    - input ``a_W`` (3): the vehicle's applied world acceleration ``R u1`` at step k.
-    - output ``x_hat`` (6): filtered ``Υ̂(k|k) = [q̂, ϑ̂]``; ``P`` (36): ``P(k|k)`` row-major.
-    - outputs ``x_prior`` (6), ``P_prior`` (36): ``Υ̂(k|k−1)`` and ``P(k|k−1)`` (state only,
-      so the sonar may point at the prediction without an algebraic loop).
+    - input ``u1_W`` (3): the vehicle's applied world acceleration ``R u1`` at step k.
+    - output ``x_TU_hat`` (6): filtered ``Υ̂(k|k) = [q̂, ϑ̂]`` with ``q = p_WU − p_WT`` (the
+      vehicle's position from the target, world frame) and ``ϑ = v_WU − v_WT``.
+    - output ``P_TU`` (36): ``P(k|k)`` row-major.
+    - outputs ``x_TU_prior`` (6), ``P_TU_prior`` (36): ``Υ̂(k|k−1)`` and ``P(k|k−1)`` (state
+      only, so the sonar may point at the prediction without an algebraic loop).
     - output ``measurement_status`` (1): VALID, DROPPED, OUT_OF_BEAM, OUT_OF_RANGE or GATED.
     - output ``nis`` (1): the update's normalised innovation squared (NaN when none).
     """
@@ -79,7 +78,7 @@ class RelativeStateEstimator(LeafSystem):
     ) -> None:
         super().__init__()
         self._A, self._B = double_integrator(time_step)
-        self._Q = self._B @ np.asarray(acceleration_covariance, dtype=float) @ self._B.T
+        self._Q = process_noise_covariance(acceleration_covariance, time_step)
         self._gate_probability = gate_probability
         self._gate_thresholds: dict[int, float] = {}
         self._x_index = self.DeclareDiscreteState(np.asarray(initial_estimate, dtype=float))
@@ -89,7 +88,7 @@ class RelativeStateEstimator(LeafSystem):
     def _declare_common_ports(self, measurement_ports: list[InputPort]) -> None:
         """Call at the end of a subclass ``__init__``, after declaring its measurement inputs."""
         self._status_port = self.DeclareVectorInputPort("sonar_status", 2)
-        self._a_port = self.DeclareVectorInputPort("a_W", 3)
+        self._a_port = self.DeclareVectorInputPort("u1_W", 3)
         tickets = {port.ticket() for port in [*measurement_ports, self._status_port]}
         self._filtered = self.DeclareCacheEntry(
             "filtered estimate",
@@ -100,10 +99,10 @@ class RelativeStateEstimator(LeafSystem):
             tickets | {self.xd_ticket()},
         )
         depends = {self._filtered.ticket()}
-        self.DeclareVectorOutputPort("x_hat", 6, self._calc_x_hat, depends)
-        self.DeclareVectorOutputPort("P", 36, self._calc_P, depends)
-        self.DeclareStateOutputPort("x_prior", self._x_index)
-        self.DeclareStateOutputPort("P_prior", self._P_index)
+        self.DeclareVectorOutputPort("x_TU_hat", 6, self._calc_x_hat, depends)
+        self.DeclareVectorOutputPort("P_TU", 36, self._calc_P, depends)
+        self.DeclareStateOutputPort("x_TU_prior", self._x_index)
+        self.DeclareStateOutputPort("P_TU_prior", self._P_index)
         self.DeclareVectorOutputPort("measurement_status", 1, self._calc_status, depends)
         self.DeclareVectorOutputPort("nis", 1, self._calc_nis, depends)
         self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._predict)

@@ -1,16 +1,14 @@
 """The paper's linear Kalman filter on the squared-range difference, eq. (9)."""
 
+from typing import Self
+
 import numpy as np
 from pydrake.systems.framework import Context
 
 from drake_uuv.estimators.base import MeasurementUpdate, RelativeStateEstimator
-
-# The update's one implementation lives with the other filter steps (pure numpy); it is
-# re-exported here for the benchmarks and the paper's-KF users.
-from drake_uuv.estimators.filters_math import range_difference_update
-from drake_uuv.sensors.dual_sonar import VALID
-
-__all__ = ["RangeDifferenceKalmanFilter", "range_difference_update"]
+from drake_uuv.models.filters import range_difference_update
+from drake_uuv.models.measurement import VALID
+from drake_uuv.scenario import Scenario
 
 
 class RangeDifferenceKalmanFilter(RelativeStateEstimator):
@@ -18,7 +16,8 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
 
     Timing, prediction, gating and the common ports are those of
     :class:`~drake_uuv.estimators.base.RelativeStateEstimator`; this class adds the scalar
-    update :func:`range_difference_update`, used when both sonars returned.
+    update :func:`~drake_uuv.models.filters.range_difference_update`, used when both sonars
+    returned.
 
     .. pydrake_system::
 
@@ -27,19 +26,19 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
         - Y
         - m
         - Gamma
-        - q_s
+        - b_W
         - sonar_status
-        - a_W
+        - u1_W
         output_ports:
-        - x_hat
-        - P
-        - x_prior
-        - P_prior
+        - x_TU_hat
+        - P_TU
+        - x_TU_prior
+        - P_TU_prior
         - measurement_status
         - nis
 
     - ``Y``, ``m``, ``Gamma`` (1 each): measurement, noise mean, noise variance.
-    - ``q_s`` (3): world sonar baseline, ``C = [q_sᵀ, 0]``.
+    - ``b_W`` (3): world sonar baseline ``q_s``, ``C = [q_sᵀ, 0]``.
     """
 
     def __init__(
@@ -60,8 +59,20 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
         self._Y_port = self.DeclareVectorInputPort("Y", 1)
         self._m_port = self.DeclareVectorInputPort("m", 1)
         self._Gamma_port = self.DeclareVectorInputPort("Gamma", 1)
-        self._q_s_port = self.DeclareVectorInputPort("q_s", 3)
-        self._declare_common_ports([self._Y_port, self._m_port, self._Gamma_port, self._q_s_port])
+        self._b_W_port = self.DeclareVectorInputPort("b_W", 3)
+        self._declare_common_ports([self._Y_port, self._m_port, self._Gamma_port, self._b_W_port])
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> Self:
+        """The filter of ``scenario.estimator`` (a :class:`~drake_uuv.scenario.PaperKf`)."""
+        e = scenario.estimator
+        return cls(
+            scenario.time_step,
+            np.asarray(scenario.target.acceleration_covariance),
+            np.asarray(e.initial_estimate),
+            np.asarray(e.initial_covariance),
+            e.gate_probability,
+        )
 
     def measurement_update(
         self, context: Context, x_prior: np.ndarray, P_prior: np.ndarray, status: np.ndarray
@@ -74,6 +85,6 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
             self._Y_port.Eval(context)[0],
             self._m_port.Eval(context)[0],
             self._Gamma_port.Eval(context)[0],
-            self._q_s_port.Eval(context),
+            self._b_W_port.Eval(context),
         )
         return MeasurementUpdate(x, P, nis, 1)

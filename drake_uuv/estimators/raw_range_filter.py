@@ -1,20 +1,24 @@
 """EKF and iterated EKF on both raw ranges, started by the paper's linear KF."""
 
 import math
+from typing import Self
 
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues
 
 from drake_uuv.estimators.base import FilteredEstimate, MeasurementUpdate, RelativeStateEstimator
-from drake_uuv.estimators.filters_math import (
-    RAW_RANGE_METHODS,
+from drake_uuv.models.filters import (
     HandoverPolicy,
+    RangeUpdate,
     ekf_update,
     iekf_update,
-    range_difference_update,
+    raw_range_update,
 )
-from drake_uuv.estimators.range_model import range_noise_covariance
-from drake_uuv.sensors.dual_sonar import VALID, range_difference_noise
+from drake_uuv.models.measurement import VALID, range_difference_noise
+from drake_uuv.scenario import Iekf, Scenario
+
+#: The range update of each method.
+UPDATES: dict[str, RangeUpdate] = {"ekf": ekf_update, "iekf": iekf_update}
 
 # The start-phase state (discrete-state group 2): [phase, linear updates done].
 LINEAR_PHASE, RANGE_PHASE = 1.0, 0.0
@@ -25,10 +29,11 @@ class RawRangeEstimator(RelativeStateEstimator):
 
     The paper's ``Y = ½(d1² − d2²)`` keeps only ``q_sᵀ q``; the two ranges also carry the
     distance. This filter uses them directly, with all ``f`` samples: the per-sonar sample
-    means ``z_i`` are sufficient, with covariance ``R = diag(η1/f, η2/f)``
-    (:func:`~drake_uuv.estimators.range_model.range_noise_covariance`), ``h(x) = [|q + ½ q_s|,
-    |q − ½ q_s|]``. Updates are :func:`~drake_uuv.estimators.filters_math.ekf_update` or
-    :func:`~drake_uuv.estimators.filters_math.iekf_update` (Joseph form). With one sonar
+    means ``z_i`` are sufficient, with covariance ``R = diag(η1/f, η2/f)``, and
+    ``h(x) = [|q + ½ q_s|, |q − ½ q_s|]``. Updates are
+    :func:`~drake_uuv.models.filters.ekf_update` or
+    :func:`~drake_uuv.models.filters.iekf_update` (Joseph form), through
+    :func:`~drake_uuv.models.filters.raw_range_update`. With one sonar
     returning, it updates with that one range (NIS with 1 degree of freedom); with none, it
     only predicts. Timing, prediction, the NIS gate and the common ports are those of
     :class:`~drake_uuv.estimators.base.RelativeStateEstimator`.
@@ -43,9 +48,10 @@ class RawRangeEstimator(RelativeStateEstimator):
     ``Y`` is *exactly* linear in ``q``, so the paper's KF converges from any prior without a
     linearisation point, and its covariance is exact for its second moments. So the filter
     begins as that KF (on ``Y = ½(z1² − z2²)`` from the same sample means, its noise mean and
-    variance from the sonar's own :func:`~drake_uuv.sensors.dual_sonar.range_difference_noise`
-    with variances ``η/f``, so there is one noise model) and hands over, one way, to the
-    raw ranges when :class:`~drake_uuv.estimators.filters_math.HandoverPolicy` says so:
+    variance from the same noise model as the sonar's,
+    :func:`~drake_uuv.models.measurement.range_difference_noise`, with variances ``η/f``) and
+    hands over, one way, to the raw ranges when
+    :class:`~drake_uuv.models.filters.HandoverPolicy` says so:
     ``trace(P_qq)`` below a threshold (0.5 m² by default: second-order range error ≈ 0.03 m,
     under the 0.1 m noise; hand-over at step ≈ 30 from the paper's prior, no divergence from
     any of the priors tried), or after ``max_linear_steps`` linear updates if that is set.
@@ -64,20 +70,20 @@ class RawRangeEstimator(RelativeStateEstimator):
         name: RawRangeEstimator
         input_ports:
         - range_samples
-        - q_s
+        - b_W
         - sonar_status
-        - a_W
+        - u1_W
         output_ports:
-        - x_hat
-        - P
-        - x_prior
-        - P_prior
+        - x_TU_hat
+        - P_TU
+        - x_TU_prior
+        - P_TU_prior
         - measurement_status
         - nis
 
     - ``range_samples`` (2f): sonar 1's f samples then sonar 2's [m]; NaN without a return.
-    - ``q_s`` (3): world sonar baseline ``R_WB b``.
-    - Common ports (``sonar_status``, ``a_W``, the outputs): see the base class.
+    - ``b_W`` (3): world sonar baseline ``q_s = R_WB b``.
+    - Common ports (``sonar_status``, ``u1_W``, the outputs): see the base class.
     """
 
     def __init__(
@@ -93,9 +99,8 @@ class RawRangeEstimator(RelativeStateEstimator):
         handover: HandoverPolicy | None = None,
         gate_probability: float | None = None,
     ) -> None:
-        if method not in RAW_RANGE_METHODS:
-            options = ", ".join(RAW_RANGE_METHODS)
-            raise ValueError(f"method: must be one of {options}, got {method!r}")
+        if method not in UPDATES:
+            raise ValueError(f"method: must be one of {', '.join(UPDATES)}, got {method!r}")
         super().__init__(
             time_step,
             acceleration_covariance,
@@ -104,18 +109,38 @@ class RawRangeEstimator(RelativeStateEstimator):
             gate_probability,
         )
         self._method = method
-        self._update = iekf_update if method == "iekf" else ekf_update
+        self._update = UPDATES[method]
         self._f = int(samples_per_step)
-        self._mean_variances = np.asarray(noise_variances, dtype=float).reshape(2) / self._f
-        self._R = range_noise_covariance(noise_variances, self._f)
+        self._eta = np.asarray(noise_variances, dtype=float).reshape(2)
         self._noise_model = noise_model
-        range_difference_noise(noise_model, self._mean_variances, np.ones(2))  # Fail early.
+        range_difference_noise(noise_model, self._eta, np.ones(2))  # Fail early.
         self._policy = handover if handover is not None else HandoverPolicy()
         phase = LINEAR_PHASE if self._policy.linear_start else RANGE_PHASE
         self._start_index = self.DeclareDiscreteState(np.array([phase, 0.0]))
         self._samples_port = self.DeclareVectorInputPort("range_samples", 2 * self._f)
-        self._q_s_port = self.DeclareVectorInputPort("q_s", 3)
-        self._declare_common_ports([self._samples_port, self._q_s_port])
+        self._b_W_port = self.DeclareVectorInputPort("b_W", 3)
+        self._declare_common_ports([self._samples_port, self._b_W_port])
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> Self:
+        """The filter of ``scenario.estimator`` (an :class:`~drake_uuv.scenario.Ekf` or
+        :class:`~drake_uuv.scenario.Iekf`)."""
+        e = scenario.estimator
+        return cls(
+            scenario.time_step,
+            np.asarray(scenario.target.acceleration_covariance),
+            np.asarray(e.initial_estimate),
+            np.asarray(e.initial_covariance),
+            np.asarray(scenario.sonar.noise_variances),
+            scenario.sonar.samples_per_step,
+            method="iekf" if isinstance(e, Iekf) else "ekf",
+            noise_model=e.noise_model,
+            handover=HandoverPolicy(
+                position_variance_threshold=e.linear_start_position_variance,
+                max_linear_steps=e.linear_start_max_steps,
+            ),
+            gate_probability=e.gate_probability,
+        )
 
     @property
     def method(self) -> str:
@@ -137,22 +162,18 @@ class RawRangeEstimator(RelativeStateEstimator):
     def measurement_update(
         self, context: Context, x_prior: np.ndarray, P_prior: np.ndarray, status: np.ndarray
     ) -> MeasurementUpdate | None:
-        samples = self._samples_port.Eval(context).reshape(2, self._f)
-        valid = (np.asarray(status) == VALID) & np.all(np.isfinite(samples), axis=1)
-        if not valid.any():
-            return None
-        z = samples.mean(axis=1)
-        q_s = self._q_s_port.Eval(context)
-        if self.in_linear_phase(context):
-            if not valid.all():
-                return None  # Y needs both ranges; predict until both return.
-            m, gamma = range_difference_noise(self._noise_model, self._mean_variances, z * z)
-            Y = 0.5 * (z[0] * z[0] - z[1] * z[1])
-            x, P, nis = range_difference_update(x_prior, P_prior, Y, m, gamma, q_s)
-            return MeasurementUpdate(x, P, nis, 1)
-        sonars = np.flatnonzero(valid)
-        x, P, nis = self._update(x_prior, P_prior, z, q_s, self._R, sonars=sonars)
-        return MeasurementUpdate(x, P, nis, int(sonars.size))
+        update = raw_range_update(
+            x_prior,
+            P_prior,
+            self._samples_port.Eval(context).reshape(2, self._f),
+            np.asarray(status) == VALID,
+            self._b_W_port.Eval(context),
+            self._eta,
+            linear_phase=self.in_linear_phase(context),
+            noise_model=self._noise_model,
+            update=self._update,
+        )
+        return None if update is None else MeasurementUpdate(*update)
 
     def advance_extra_state(
         self, context: Context, filtered: FilteredEstimate, discrete_state: DiscreteValues

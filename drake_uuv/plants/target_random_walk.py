@@ -1,10 +1,14 @@
 """The non-cooperative target: a double integrator driven by Gaussian acceleration noise."""
 
+from typing import Self
+
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from drake_uuv.plants.double_integrator import double_integrator
+from drake_uuv.models.motion import double_integrator
+from drake_uuv.primitives.random_input import declare_random_input
+from drake_uuv.scenario import Scenario
 
 
 class TargetRandomWalk(LeafSystem):
@@ -20,10 +24,11 @@ class TargetRandomWalk(LeafSystem):
         input_ports:
         - acceleration_noise
         output_ports:
-        - state
+        - p_WT
+        - v_WT
 
     - ``acceleration_noise`` (3, random, standard normal): ``ξ`` with ``ū = chol(W) ξ``.
-    - ``state`` (6): ``[p_WT, v_WT]``, position and velocity of the target in the world.
+    - ``p_WT``, ``v_WT`` (3 each): position and velocity of the target in the world.
     """
 
     def __init__(
@@ -36,16 +41,34 @@ class TargetRandomWalk(LeafSystem):
         super().__init__()
         self._A, self._B = double_integrator(time_step)
         self._L = np.linalg.cholesky(np.asarray(acceleration_covariance, dtype=float))
-        self._noise_port = self.DeclareVectorInputPort(
-            "acceleration_noise", 3, RandomDistribution.kGaussian
+        self._noise_port = declare_random_input(
+            self, "acceleration_noise", 3, RandomDistribution.kGaussian
         )
-        self._state_index = self.DeclareDiscreteState(
-            np.concatenate([initial_position, initial_velocity])
-        )
+        self._p_index = self.DeclareDiscreteState(np.asarray(initial_position, dtype=float))
+        self._v_index = self.DeclareDiscreteState(np.asarray(initial_velocity, dtype=float))
         self.DeclarePeriodicDiscreteUpdateEvent(time_step, 0.0, self._update)
-        self.DeclareStateOutputPort("state", self._state_index)
+        self.DeclareStateOutputPort("p_WT", self._p_index)
+        self.DeclareStateOutputPort("v_WT", self._v_index)
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> Self:
+        """The target of ``scenario.target``."""
+        target = scenario.target
+        return cls(
+            scenario.time_step,
+            np.asarray(target.acceleration_covariance),
+            np.asarray(target.initial_position),
+            np.asarray(target.initial_velocity),
+        )
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        x = context.get_discrete_state(self._state_index).get_value()
+        x = np.concatenate(
+            [
+                context.get_discrete_state(self._p_index).get_value(),
+                context.get_discrete_state(self._v_index).get_value(),
+            ]
+        )
         acceleration = self._L @ self._noise_port.Eval(context)
-        discrete_state.set_value(self._state_index, self._A @ x + self._B @ acceleration)
+        x_next = self._A @ x + self._B @ acceleration
+        discrete_state.set_value(self._p_index, x_next[:3])
+        discrete_state.set_value(self._v_index, x_next[3:])

@@ -2,22 +2,23 @@
 
 import math
 from dataclasses import dataclass
+from typing import Self
 
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
 
-from drake_uuv.estimators.range_model import range_difference_noise
-from drake_uuv.so3 import norm
-
-__all__ = ["DualSonar", "SonarFaults", "range_difference_noise"]
-
-
-# Per-sonar return status, the ``status`` output port.
-VALID, DROPPED, OUT_OF_BEAM, OUT_OF_RANGE = 0, 1, 2, 3
-STATUS_NAMES = {VALID: "valid", DROPPED: "dropped", OUT_OF_BEAM: "out of beam",
-                OUT_OF_RANGE: "out of range"}  # fmt: skip
+from drake_uuv.models.measurement import (
+    DROPPED,
+    OUT_OF_BEAM,
+    OUT_OF_RANGE,
+    VALID,
+    range_difference_noise,
+)
+from drake_uuv.models.so3 import norm
+from drake_uuv.primitives.random_input import declare_random_input
+from drake_uuv.scenario import Scenario
 
 
 def _clip_at_zero(x: float) -> float:
@@ -52,6 +53,20 @@ class SonarFaults:
     def random_faults(self) -> bool:
         return max(self.dropout_probability) > 0.0 or self.outlier_probability > 0.0
 
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> Self:
+        """The fault model of ``scenario.sonar`` (all off in the paper scenario)."""
+        s = scenario.sonar
+        half_angle = s.beam_half_angle_deg
+        return cls(
+            max_range=s.max_range,
+            beam_half_angle=None if half_angle is None else math.radians(half_angle),
+            dropout_probability=tuple(s.dropout_probability),
+            outlier_probability=s.outlier_probability,
+            outlier_scale=s.outlier_scale,
+            search_sigma=s.search_sigma,
+        )
+
 
 @dataclass
 class _Measurement:
@@ -59,7 +74,7 @@ class _Measurement:
     Y: float  # NaN unless both sonars returned
     m: float
     Gamma: float
-    q_s: np.ndarray  # (3,)
+    b_W: np.ndarray  # (3,)
     status: np.ndarray  # (2,) VALID, DROPPED, OUT_OF_BEAM or OUT_OF_RANGE
     multipath: np.ndarray  # (2,) the true multipath excess [m], 0 without an outlier
 
@@ -68,20 +83,21 @@ class DualSonar(LeafSystem):
     """Ranges from two sonars to the target, and the paper's linearised measurement.
 
     Sonar s1 sits at ``p_WU + ½ q_s`` and s2 at ``p_WU − ½ q_s``, with the world baseline
-    ``q_s = R_WB b``. Each returns ``f`` samples ``d_i = |p_WS_i − p_WT| + v``, ``v ~ N(0, η_i)``;
-    the first sample forms ``Y = ½(d1² − d2²) = q_sᵀ q + v̄`` and all ``f`` estimate ``d̄²`` for
-    the noise variance ``Γ`` (:func:`range_difference_noise`).
+    ``q_s = R_WB b`` (the paper's symbol; the port is ``b_W``). Each returns ``f`` samples
+    ``d_i = |p_WS_i − p_WT| + v``, ``v ~ N(0, η_i)``; the first sample forms
+    ``Y = ½(d1² − d2²) = q_sᵀ q + v̄`` and all ``f`` estimate ``d̄²`` for the noise variance
+    ``Γ`` (:func:`~drake_uuv.models.measurement.range_difference_noise`).
 
     .. pydrake_system::
 
         name: DualSonar
         input_ports:
-        - uuv_state
+        - p_WU
         - R_WB
-        - target_state
+        - p_WT
         - range_noise
-        - x_prior (with a beam)
-        - P_prior (with a beam)
+        - x_TU_prior (with a beam)
+        - P_TU_prior (with a beam)
         - fault_uniform (with dropouts or outliers)
         - multipath_noise (with dropouts or outliers)
         output_ports:
@@ -90,25 +106,25 @@ class DualSonar(LeafSystem):
         - Y
         - m
         - Gamma
-        - q_s
-        - status
+        - b_W
+        - sonar_status
         - multipath
 
-    - ``uuv_state`` (6) ``[p_WU, v_WU]``; ``R_WB`` (9, row-major); ``target_state`` (6)
-      ``[p_WT, v_WT]``.
+    - ``p_WU`` (3), the vehicle's body origin; ``R_WB`` (9, row-major); ``p_WT`` (3), the
+      target.
     - ``range_noise`` (2f, random, standard normal): scaled here by ``√η_i``.
     - ``ranges`` (2): the first sample of each sonar, ``[d1, d2]`` [m].
     - ``range_samples`` (2f): all samples, sonar 1's then sonar 2's [m].
     - ``Y``, ``m``, ``Gamma`` (1 each): the measurement, its noise mean and variance.
-    - ``q_s`` (3): the world baseline ``R_WB b`` (so ``C(k) = [q_sᵀ, 0]``).
-    - ``status`` (2): per sonar, ``VALID``, ``DROPPED``, ``OUT_OF_BEAM`` or ``OUT_OF_RANGE``.
+    - ``b_W`` (3): the world baseline ``q_s = R_WB b`` (so ``C(k) = [q_sᵀ, 0]``).
+    - ``sonar_status`` (2): per sonar, ``VALID``, ``DROPPED``, ``OUT_OF_BEAM`` or ``OUT_OF_RANGE``.
       A sonar without a return has NaN ranges, and ``Y``, ``m``, ``Gamma`` are NaN unless
       both returned.
     - ``multipath`` (2): ground truth for analysis, the excess added to each sonar's return.
 
     Faults (:class:`SonarFaults`, all off by default) add ports only when switched on:
-    ``x_prior`` (6) and ``P_prior`` (36), the estimator's prediction the pan-tilts point at, the
-    random ports ``fault_uniform`` (4, uniform: dropout then outlier draws per sonar) and
+    ``x_TU_prior`` (6) and ``P_TU_prior`` (36), the estimator's prediction the pan-tilts point
+    at, the random ports ``fault_uniform`` (4, uniform: dropout then outlier draws per sonar) and
     ``multipath_noise`` (2, exponential).
     """
 
@@ -136,22 +152,22 @@ class DualSonar(LeafSystem):
         self._derived_m = float(self._derived_m)
         self._eta_floats = tuple(float(e) for e in self._eta)
 
-        self._uuv_port = self.DeclareVectorInputPort("uuv_state", 6)
+        self._uuv_port = self.DeclareVectorInputPort("p_WU", 3)
         self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
-        self._target_port = self.DeclareVectorInputPort("target_state", 6)
-        self._noise_port = self.DeclareVectorInputPort(
-            "range_noise", 2 * self._f, RandomDistribution.kGaussian
+        self._target_port = self.DeclareVectorInputPort("p_WT", 3)
+        self._noise_port = declare_random_input(
+            self, "range_noise", 2 * self._f, RandomDistribution.kGaussian
         )
         self._prior_port = self._prior_covariance_port = None
         if self._faults.beam_half_angle is not None:
-            self._prior_port = self.DeclareVectorInputPort("x_prior", 6)
-            self._prior_covariance_port = self.DeclareVectorInputPort("P_prior", 36)
+            self._prior_port = self.DeclareVectorInputPort("x_TU_prior", 6)
+            self._prior_covariance_port = self.DeclareVectorInputPort("P_TU_prior", 36)
         if self._faults.random_faults:
-            self._uniform_port = self.DeclareVectorInputPort(
-                "fault_uniform", 4, RandomDistribution.kUniform
+            self._uniform_port = declare_random_input(
+                self, "fault_uniform", 4, RandomDistribution.kUniform
             )
-            self._multipath_port = self.DeclareVectorInputPort(
-                "multipath_noise", 2, RandomDistribution.kExponential
+            self._multipath_port = declare_random_input(
+                self, "multipath_noise", 2, RandomDistribution.kExponential
             )
         # One measurement per context, shared by every output port.
         self._measurement = self.DeclareCacheEntry(
@@ -172,17 +188,28 @@ class DualSonar(LeafSystem):
         self.DeclareVectorOutputPort("Y", 1, self._calc_Y, depends)
         self.DeclareVectorOutputPort("m", 1, self._calc_m, depends)
         self.DeclareVectorOutputPort("Gamma", 1, self._calc_Gamma, depends)
-        self.DeclareVectorOutputPort("q_s", 3, self._calc_q_s, depends)
-        self.DeclareVectorOutputPort("status", 2, self._calc_status, depends)
+        self.DeclareVectorOutputPort("b_W", 3, self._calc_b_W, depends)
+        self.DeclareVectorOutputPort("sonar_status", 2, self._calc_status, depends)
         self.DeclareVectorOutputPort("multipath", 2, self._calc_multipath, depends)
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> Self:
+        """The sonars of ``scenario.sonar``; ``m`` and ``Γ`` from the estimator's noise model."""
+        return cls(
+            np.asarray(scenario.sonar.baseline),
+            np.asarray(scenario.sonar.noise_variances),
+            scenario.sonar.samples_per_step,
+            scenario.estimator.noise_model,
+            SonarFaults.from_scenario(scenario),
+        )
 
     @property
     def faults(self) -> SonarFaults:
         return self._faults
 
     def _calc_measurement(self, context: Context, value: AbstractValue) -> None:
-        p_WU = self._uuv_port.Eval(context)[:3]
-        p_WT = self._target_port.Eval(context)[:3]
+        p_WU = self._uuv_port.Eval(context)
+        p_WT = self._target_port.Eval(context)
         q_s = self._attitude_port.Eval(context).reshape(3, 3) @ self._b
         q = p_WU - p_WT
         half = 0.5 * q_s
@@ -253,9 +280,6 @@ class DualSonar(LeafSystem):
                     status[i] = OUT_OF_BEAM
         return status
 
-    def _get(self, context: Context) -> _Measurement:
-        return self._measurement.Eval(context)
-
     def _calc_ranges(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._measurement.Eval(context).range_samples[:, 0])
 
@@ -271,8 +295,8 @@ class DualSonar(LeafSystem):
     def _calc_Gamma(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, self._measurement.Eval(context).Gamma)
 
-    def _calc_q_s(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._measurement.Eval(context).q_s)
+    def _calc_b_W(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._measurement.Eval(context).b_W)
 
     def _calc_status(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._measurement.Eval(context).status)

@@ -7,13 +7,7 @@ from pathlib import Path
 
 from drake_uuv.diagram import make_uuv_diagram
 from drake_uuv.io import write_atomic, write_text_atomic
-from drake_uuv.scenario import (
-    ATTITUDE_MODES,
-    ESTIMATOR_TYPES,
-    TRACKING_TYPES,
-    Scenario,
-    load_scenario,
-)
+from drake_uuv.scenario import SLOTS, Scenario, load_scenario, variants
 
 _ID = re.compile(r"(?<=\bs)\d+\b|(?<=cluster)\d+|(?<=digraph _)\d+")
 _EDGE = re.compile(r"^s(\d+):y(\d+):e -> s(\d+):u(\d+):w$")
@@ -34,14 +28,17 @@ def _sorted_edges(lines: list[str]) -> list[str]:
     return out[:-1]
 
 
-def diagram_dot(scenario: Scenario, max_depth: int = 1) -> str:
+def diagram_dot(scenario: Scenario, max_depth: int = 1, loggers: bool = False) -> str:
     """``GetGraphvizString`` of the scenario's diagram with stable node ids.
 
-    Drake numbers nodes by a per-process system id, so the raw string changes with whatever
-    was built before; renumbering ids in order of first appearance makes the export
-    reproducible (and a committed export checkable). Edges are sorted for the same reason.
+    Without ``loggers`` (the default) the picture shows the loop itself: the one logger per
+    signal that a run adds would crowd it out. Drake numbers nodes by a per-process system id,
+    so the raw string changes with whatever was built before; renumbering ids in order of
+    first appearance makes the export reproducible (and a committed export checkable). Edges
+    are sorted for the same reason.
     """
-    raw = make_uuv_diagram(scenario).diagram.GetGraphvizString(max_depth=max_depth)
+    diagram = make_uuv_diagram(scenario, log=loggers).diagram
+    raw = diagram.GetGraphvizString(max_depth=max_depth)
     ids: dict[str, str] = {}
     renumbered = _ID.sub(lambda m: ids.setdefault(m.group(0), str(len(ids))), raw)
     return "\n".join(_sorted_edges(renumbered.split("\n")))
@@ -50,29 +47,27 @@ def diagram_dot(scenario: Scenario, max_depth: int = 1) -> str:
 def diagram_variants() -> dict[str, list[str]]:
     """Every distinct diagram the package builds, by the overrides of the paper scenario.
 
-    One per attitude mode, estimator type and tracking law (from the scenario's lists of types,
-    so a new type gets its export without anyone editing this function), one with every sonar
-    fault switched on (it adds ports), and none that would repeat the paper's own diagram.
+    One per variant of each slot (from the scenario's variant types, so a new variant gets its
+    export without anyone editing this function), named ``<slot>_<variant in snake case>``,
+    one with every sonar fault switched on (it adds ports), and none that would repeat the
+    paper's own diagram.
     """
     paper = load_scenario("paper")
     candidates: dict[str, list[str]] = {}
-    for mode in ATTITUDE_MODES:
-        candidates[f"attitude_{mode}"] = [f"attitude.mode={mode}"]
-    for estimator in ESTIMATOR_TYPES:
-        candidates[f"estimator_{estimator}"] = [f"estimator.type={estimator}"]
-    for law in TRACKING_TYPES:
-        candidates[f"tracking_{law}"] = [f"tracking.type={law}"]
+    for slot in SLOTS:
+        for tag in variants(Scenario, slot):
+            candidates[f"{slot}_{_snake(tag)}"] = [f"{slot}=!{tag}"]
     candidates["sonar_faults"] = [
         "sonar.beam_half_angle_deg=10",
         "sonar.dropout_probability=[0.1, 0.1]",
         "sonar.outlier_probability=0.05",
         "estimator.gate_probability=0.99",
     ]
-    variants: dict[str, list[str]] = {"paper": []}
+    exports: dict[str, list[str]] = {"paper": []}
     for name, overrides in candidates.items():
         if load_scenario("paper", overrides) != paper:
-            variants[name] = overrides
-    return variants
+            exports[name] = overrides
+    return exports
 
 
 def render(dot_path: Path, formats: tuple[str, ...] = ("svg", "png")) -> list[Path] | None:
@@ -89,15 +84,23 @@ def render(dot_path: Path, formats: tuple[str, ...] = ("svg", "png")) -> list[Pa
     return written
 
 
-def export_diagram(scenario: Scenario, out_dir: Path, name: str, max_depth: int = 1) -> list[Path]:
+def _snake(name: str) -> str:
+    return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).lower()
+
+
+def export_diagram(
+    scenario: Scenario, out_dir: Path, name: str, max_depth: int = 1, loggers: bool = False
+) -> list[Path]:
     """Writes ``name.dot`` (always) and ``.svg``/``.png`` (when Graphviz is present)."""
-    dot_path = write_text_atomic(Path(out_dir) / f"{name}.dot", diagram_dot(scenario, max_depth))
+    dot = diagram_dot(scenario, max_depth, loggers)
+    dot_path = write_text_atomic(Path(out_dir) / f"{name}.dot", dot)
     return [dot_path, *(render(dot_path) or [])]
 
 
-def export_all_variants(out_dir: Path, max_depth: int = 1) -> list[Path]:
+def export_all_variants(out_dir: Path, max_depth: int = 1, loggers: bool = False) -> list[Path]:
     """Exports :func:`diagram_variants` into ``out_dir``."""
     written = []
     for name, overrides in diagram_variants().items():
-        written += export_diagram(load_scenario("paper", overrides), out_dir, name, max_depth)
+        scenario = load_scenario("paper", overrides)
+        written += export_diagram(scenario, out_dir, name, max_depth, loggers)
     return written

@@ -63,7 +63,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_uuv.estimators.range_model import process_noise_covariance, relative_model_matrices
+from drake_uuv.models.motion import double_integrator, process_noise_covariance
 
 try:  # the gufunc behind np.linalg.inv, without its per-call checks (same LAPACK call)
     from numpy.linalg import _umath_linalg
@@ -141,7 +141,7 @@ def pcrlb_recursion(
     M = np.asarray(information, dtype=float)
     if M.ndim < 3 or M.shape[-2:] != (6, 6):
         raise ValueError(f"information must have shape (N, 6, 6), got {M.shape}")
-    A, _ = relative_model_matrices(time_step)
+    A, _ = double_integrator(time_step)
     Q = process_noise_covariance(W, time_step)
     P0 = _symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
     bounds = _pcrlb_loop(M, P0, A, Q)
@@ -296,7 +296,7 @@ def kf_riccati_covariance(
     if Gamma.shape[0] != qs.shape[0]:
         raise ValueError(f"Gamma has {Gamma.shape[0]} entries for {qs.shape[0]} steps")
     both = _availability(available, qs.shape[0]).all(axis=1)
-    A, _ = relative_model_matrices(time_step)
+    A, _ = double_integrator(time_step)
     Q = process_noise_covariance(W, time_step)
     P_pred = _symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
     covs = np.empty((qs.shape[0], 6, 6))

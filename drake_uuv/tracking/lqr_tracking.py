@@ -43,69 +43,13 @@ saturated and the law resumes exactly where the unsaturated law would be once th
 falls below the limit.
 """
 
+from typing import Self
+
 import numpy as np
-from pydrake.systems.controllers import DiscreteTimeLinearQuadraticRegulator
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
-from drake_uuv.plants.double_integrator import double_integrator
+from drake_uuv.models.tracking_laws import lqr_gain, reference_feedforward, saturate_norm
 from drake_uuv.scenario import Scenario
-
-
-def lqr_gain(
-    time_step: float, position_weight: float, velocity_weight: float, input_weight: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(K, S)`` of Drake's discrete LQR on the relative double integrator.
-
-    ``Q = diag(position_weight I₃, velocity_weight I₃)``, ``R = input_weight I₃``; ``K`` is 3×6
-    with ``a = −K Υ`` minimising ``Σ Υᵀ Q Υ + aᵀ R a``; ``S`` solves the DARE.
-    """
-    A, B = double_integrator(time_step)
-    Q = np.diag([position_weight] * 3 + [velocity_weight] * 3)
-    K, S = DiscreteTimeLinearQuadraticRegulator(A, B, Q, input_weight * np.eye(3))
-    return K, S
-
-
-def reference_feedforward(
-    r0: np.ndarray, r1: np.ndarray, r2: np.ndarray, time_step: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """``([r0; ν], a_ff)`` of the reference through ``r0, r1, r2`` (see the module notes)."""
-    t = time_step
-    nu = (-3.0 * r0 + 4.0 * r1 - r2) / (2.0 * t)
-    a_ff = (r0 - 2.0 * r1 + r2) / (t * t)
-    return np.concatenate([r0, nu]), a_ff
-
-
-def saturate_norm(a: np.ndarray, limit: float | None) -> np.ndarray:
-    """``a`` scaled down to norm ``limit`` if longer (direction kept); unchanged if None."""
-    if limit is None:
-        return a
-    a_norm = float(np.sqrt(a @ a))
-    return a * (limit / a_norm) if a_norm > limit else a
-
-
-def tracking_gain(scenario: Scenario) -> np.ndarray:
-    """The 3×6 world-frame gain ``K`` of ``a = a_ff − K (Υ̂ − Υ_ref)`` for ``tracking.type``.
-
-    For ``paper`` this is the paper's law rewritten in the world frame,
-    ``K = [(2α/t²) I, (2/t) I]`` (its ``a_ff`` is zero and its reference ``[R q*, 0]``).
-    """
-    c, t = scenario.tracking, scenario.time_step
-    if c.type == "paper":
-        return np.hstack([2.0 * c.alpha / (t * t) * np.eye(3), 2.0 / t * np.eye(3)])
-    if c.type == "lqr":
-        return lqr_gain(t, c.lqr_position_weight, c.lqr_velocity_weight, c.lqr_input_weight)[0]
-    raise ValueError(f"tracking.type: unknown tracking law, got {c.type!r}")
-
-
-def closed_loop_eigenvalues(scenario: Scenario) -> np.ndarray:
-    """Eigenvalues of ``A − B K`` of the relative double integrator, largest modulus first.
-
-    Without saturation and with perfect state knowledge they govern the tracking error. The
-    paper's law gives ``1 − α`` (three times) and ``−1`` (three times, the undamped velocity).
-    """
-    A, B = double_integrator(scenario.time_step)
-    eigenvalues = np.linalg.eigvals(A - B @ tracking_gain(scenario))
-    return eigenvalues[np.argsort(-np.abs(eigenvalues), kind="stable")]
 
 
 class LqrTrackingController(LeafSystem):
@@ -120,19 +64,19 @@ class LqrTrackingController(LeafSystem):
 
         name: LqrTrackingController
         input_ports:
-        - x_hat
+        - x_TU_hat
         - R_WB
         - R_WB_plan
         output_ports:
         - u1_B
-        - a_W
+        - u1_W
 
-    - ``x_hat`` (6): the filtered relative state ``[q̂, ϑ̂]``.
+    - ``x_TU_hat`` (6): the filtered relative state ``[q̂, ϑ̂]``.
     - ``R_WB`` (9, row-major): the current attitude ``R(k)``.
     - ``R_WB_plan`` (18): the planned ``R(k+1)`` and ``R(k+2)``, row-major (the attitude
       generator's output of the same name).
     - ``u1_B`` (3): the body-frame acceleration command [m/s²].
-    - ``a_W`` (3): the same acceleration in the world frame, ``R u1`` (the filter's input).
+    - ``u1_W`` (3): the same acceleration in the world frame, ``R u1`` (the filter's input).
     """
 
     def __init__(
@@ -151,15 +95,29 @@ class LqrTrackingController(LeafSystem):
         self._K, _ = lqr_gain(self._time_step, position_weight, velocity_weight, input_weight)
         self._max_acceleration = max_acceleration
         self._feedforward = feedforward
-        self._x_hat_port = self.DeclareVectorInputPort("x_hat", 6)
+        self._x_hat_port = self.DeclareVectorInputPort("x_TU_hat", 6)
         self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
         self._plan_port = self.DeclareVectorInputPort("R_WB_plan", 18)
         self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1)
-        self.DeclareVectorOutputPort("a_W", 3, self._calc_a_W)
+        self.DeclareVectorOutputPort("u1_W", 3, self._calc_u1_W)
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> Self:
+        """The controller of ``scenario.tracking`` (an :class:`~drake_uuv.scenario.LqrTracking`)."""
+        c = scenario.tracking
+        return cls(
+            scenario.time_step,
+            np.asarray(c.desired_relative_position),
+            c.position_weight,
+            c.velocity_weight,
+            c.input_weight,
+            c.max_acceleration,
+            c.feedforward,
+        )
 
     @property
     def gain(self) -> np.ndarray:
-        """The 3×6 LQR gain ``K``."""
+        """The 3×6 world-frame gain ``K`` (:func:`~drake_uuv.models.tracking_laws.lqr_gain`)."""
         return self._K.copy()
 
     def reference(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
@@ -184,5 +142,5 @@ class LqrTrackingController(LeafSystem):
         R_WB = self._attitude_port.Eval(context).reshape(3, 3)
         output.set_value(R_WB.T @ self.get_output_port(1).Eval(context))
 
-    def _calc_a_W(self, context: Context, output: BasicVector) -> None:
+    def _calc_u1_W(self, context: Context, output: BasicVector) -> None:
         output.set_value(self.acceleration(context))

@@ -4,18 +4,15 @@ One implementation shared by every estimator LeafSystem:
 
 * :func:`predict` — the time update ``x⁺ = A x + B a_W``, ``P⁺ = A P Aᵀ + Q``.
 * :func:`range_difference_update` — the paper's KF update on ``Y = ½(d1² − d2²) = q_sᵀ q + v̄``
-  (eq. 9), Joseph form. The one implementation: the paper's KF LeafSystem
-  (:mod:`~drake_uuv.estimators.kalman_filter`, which re-exports it), the raw-range filters'
-  linear start and the numpy reference all call it.
+  (eq. 9), Joseph form. The paper's KF LeafSystem and the raw-range filters' linear start
+  both call it.
 * :func:`ekf_update` — EKF update on both raw ranges (sample means of all f samples), or on
   the one that returned, Joseph form.
 * :func:`iekf_update` — iterated EKF: Gauss–Newton on the MAP cost with a backtracking
   step limit, Joseph form at the final iterate.
-* :func:`raw_range_update` with :class:`HandoverPolicy` — the robust start of a raw-range
-  filter: linear KF updates until the position covariance is small, then the (I)EKF.
-* :class:`RawRangeFilter` — a small stateful wrapper of the above (used by the numpy
-  reference simulator and the tests; a LeafSystem keeps the same quantities in its
-  discrete state instead).
+* :func:`raw_range_update` with :class:`HandoverPolicy` — one measurement step of a raw-range
+  filter from the sonars' samples: linear KF updates until the position covariance is small,
+  then the (I)EKF, on the sonars that returned.
 
 Every update returns ``(x, P, nis)`` where ``nis = νᵀ S⁻¹ ν`` is the normalised innovation
 squared of the *prior* innovation (χ² with 1 degree of freedom for the linear update, 2 for
@@ -41,19 +38,19 @@ linear KF needs no tuning beyond the threshold, and its own covariance says when
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from drake_uuv.estimators.range_model import (
-    mean_ranges,
-    range_difference_measurement,
+from drake_uuv.models.measurement import (
+    range_difference_noise,
     range_jacobian,
     range_measurement,
-    range_noise_covariance,
 )
 
-RAW_RANGE_METHODS = ("ekf", "iekf")
+#: A measurement update: ``(x_pred, P_pred, z, q_s, R, sonars=...) -> (x, P, nis)``.
+RangeUpdate = Callable[..., tuple[np.ndarray, np.ndarray, float]]
 
 
 def _symmetrise(P: np.ndarray) -> np.ndarray:
@@ -265,85 +262,43 @@ def raw_range_update(
     x_pred: np.ndarray,
     P_pred: np.ndarray,
     range_samples: np.ndarray,
+    available: np.ndarray,
     q_s: np.ndarray,
-    eta: np.ndarray,
-    samples_per_step: int,
+    noise_variances: np.ndarray,
     *,
     linear_phase: bool,
-    method: str = "ekf",
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """One measurement update of a raw-range filter from the ``2f`` raw range samples.
+    noise_model: str = "derived",
+    update: RangeUpdate = ekf_update,
+) -> tuple[np.ndarray, np.ndarray, float, int] | None:
+    """One measurement step of a raw-range filter, or None when there is nothing to use.
 
-    ``range_samples`` holds the f samples of sonar 1, then the f of sonar 2. Both phases use
-    the per-sonar sample means ``z`` (sufficient statistic, covariance ``diag(η/f)``):
+    ``range_samples`` (2×f) holds each sonar's f samples (NaN without a return) and
+    ``available`` (2, bool) which sonars returned. Both phases use the per-sonar sample means
+    ``z`` (sufficient statistic, covariance ``R = diag(η/f)``):
 
-    * ``linear_phase=True``: :func:`range_difference_update` on ``Y = ½(z1² − z2²)`` with the
-      derived moments for noise variance ``η/f`` (see the module docstring for why);
-    * otherwise :func:`ekf_update` (``method="ekf"``) or :func:`iekf_update` (``"iekf"``).
+    * ``linear_phase``: the paper's KF update :func:`range_difference_update` on
+      ``Y = ½(z1² − z2²)``, its noise mean and variance from ``noise_model`` with variances
+      ``η/f`` (:func:`~drake_uuv.models.measurement.range_difference_noise`); it needs both
+      sonars, so a step with one return only predicts (None);
+    * otherwise ``update`` (:func:`ekf_update` or :func:`iekf_update`) on the sonars that
+      returned.
 
-    Whether the *next* update is still linear is the caller's decision, with
-    :meth:`HandoverPolicy.handover_due` on the returned covariance.
+    Returns ``(x, P, nis, dof)`` with ``dof`` the innovation's dimension. Whether the next
+    update is still linear is the caller's decision (:meth:`HandoverPolicy.handover_due`).
     """
-    if method not in RAW_RANGE_METHODS:
-        raise ValueError(f"method must be one of {RAW_RANGE_METHODS}, got {method!r}")
-    z = mean_ranges(range_samples, samples_per_step)
-    R = range_noise_covariance(eta, samples_per_step)
+    samples = np.asarray(range_samples, dtype=float)
+    valid = np.asarray(available, dtype=bool) & np.all(np.isfinite(samples), axis=1)
+    if not valid.any():
+        return None
+    z = samples.mean(axis=1)
+    variances = np.asarray(noise_variances, dtype=float).reshape(2) / samples.shape[1]
     if linear_phase:
-        Y, m, Gamma = range_difference_measurement(z, np.diag(R))
-        return range_difference_update(x_pred, P_pred, Y, m, Gamma, q_s)
-    if method == "iekf":
-        return iekf_update(x_pred, P_pred, z, q_s, R)
-    return ekf_update(x_pred, P_pred, z, q_s, R)
-
-
-class RawRangeFilter:
-    """Stateful raw-range filter (EKF or IEKF with a linear-KF start), pure numpy.
-
-    Call :meth:`update` with the step's range samples and baseline, read ``x``/``P``, then
-    :meth:`predict` with the applied world acceleration. A LeafSystem keeps the same state
-    (``x_pred``, ``P_pred``, ``linear_phase``, ``linear_steps``) as discrete state.
-    """
-
-    def __init__(
-        self,
-        x0: np.ndarray,
-        P0: np.ndarray,
-        A: np.ndarray,
-        B: np.ndarray,
-        Q: np.ndarray,
-        eta: np.ndarray,
-        samples_per_step: int,
-        method: str = "ekf",
-        policy: HandoverPolicy | None = None,
-    ) -> None:
-        self.x = np.array(x0, dtype=float)
-        self.P = np.array(P0, dtype=float)
-        self.A, self.B, self.Q = A, B, Q
-        self.eta = np.asarray(eta, dtype=float)
-        self.f = int(samples_per_step)
-        self.method = method
-        self.policy = policy if policy is not None else HandoverPolicy()
-        self.linear_steps = 0
-        self.linear_phase = self.policy.linear_start
-        self.nis = float("nan")
-
-    def update(self, range_samples: np.ndarray, q_s: np.ndarray) -> None:
-        """Measurement update at step k: ``(x, P)`` become ``x(k|k)``, ``P(k|k)``."""
-        self.x, self.P, self.nis = raw_range_update(
-            self.x,
-            self.P,
-            range_samples,
-            q_s,
-            self.eta,
-            self.f,
-            linear_phase=self.linear_phase,
-            method=self.method,
-        )
-        if self.linear_phase:
-            self.linear_steps += 1
-            if self.policy.handover_due(self.P, self.linear_steps):
-                self.linear_phase = False
-
-    def predict(self, a_W: np.ndarray) -> None:
-        """Time update to step k+1 with the applied world acceleration ``a_W(k)``."""
-        self.x, self.P = predict(self.x, self.P, a_W, self.A, self.B, self.Q)
+        if not valid.all():
+            return None  # Y needs both ranges; predict until both return.
+        m, gamma = range_difference_noise(noise_model, variances, z * z)
+        Y = 0.5 * (z[0] * z[0] - z[1] * z[1])
+        x, P, nis = range_difference_update(x_pred, P_pred, Y, m, gamma, q_s)
+        return x, P, nis, 1
+    sonars = np.flatnonzero(valid)
+    x, P, nis = update(x_pred, P_pred, z, q_s, np.diag(variances), sonars=sonars)
+    return x, P, nis, int(sonars.size)

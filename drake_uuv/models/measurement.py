@@ -1,13 +1,10 @@
-"""Measurement and motion model of the relative state, as pure numpy (no Drake).
+"""The dual-sonar measurement model of the relative state, as pure numpy (no Drake).
 
-Conventions (design.md §1, fixed for every estimator in this package):
+Conventions, fixed for every estimator in this package:
 
 * Relative state ``x = [q, ϑ] ∈ R⁶``, ``q = p_uuv − p_target`` and ``ϑ = v_uuv − v_target``,
   both in the world frame.
-* ``x(k+1) = A x(k) + B (a_W(k) − ū(k))`` with ``A = [[I, tI], [0, I]]``,
-  ``B = [[t²/2 I], [t I]]``, ``a_W = R u1`` the known world acceleration applied to the UUV
-  and ``ū ~ N(0, W)`` the target's acceleration. The process noise covariance is
-  ``Q = B W Bᵀ`` (rank 3, singular).
+* The motion model is :mod:`drake_uuv.models.motion`.
 * World sonar baseline ``q_s = R b``; sonar s1 sits at ``p_uuv + ½ q_s``, s2 at
   ``p_uuv − ½ q_s``. True ranges ``d1 = |q + ½ q_s|``, ``d2 = |q − ½ q_s|``.
 * Each sonar returns ``f`` samples ``d_i^j = d_i + v_i^j``, ``v ~ N(0, η_i)`` (``η`` is a
@@ -22,27 +19,12 @@ import numpy as np
 #: Ranges below this are clamped when a unit vector is formed (a sonar on the target).
 MIN_RANGE = 1e-9
 
-
-def relative_model_matrices(time_step: float) -> tuple[np.ndarray, np.ndarray]:
-    """Return ``(A, B)`` of the constant-velocity relative model for period ``time_step``.
-
-    ``A = [[I, tI], [0, I]]`` (6×6) and ``B = [[t²/2 I], [t I]]`` (6×3).
-    """
-    t = float(time_step)
-    if not t > 0.0:
-        raise ValueError(f"time_step must be > 0, got {time_step}")
-    eye = np.eye(3)
-    A = np.block([[eye, t * eye], [np.zeros((3, 3)), eye]])
-    B = np.vstack([0.5 * t * t * eye, t * eye])
-    return A, B
-
-
-def process_noise_covariance(W: np.ndarray, time_step: float) -> np.ndarray:
-    """Return ``Q = B W Bᵀ`` (6×6, rank 3) for the target acceleration covariance ``W`` (3×3)."""
-    _, B = relative_model_matrices(time_step)
-    W = np.asarray(W, dtype=float).reshape(3, 3)
-    Q = B @ W @ B.T
-    return 0.5 * (Q + Q.T)
+# A step's measurement status: per sonar, whether its return arrived (the sonar's
+# ``sonar_status``), and for the whole update (the estimator's ``measurement_status``),
+# which adds GATED: rejected by the NIS gate.
+VALID, DROPPED, OUT_OF_BEAM, OUT_OF_RANGE, GATED = 0, 1, 2, 3, 4
+STATUS_NAMES = {VALID: "valid", DROPPED: "dropped", OUT_OF_BEAM: "out of beam",
+                OUT_OF_RANGE: "out of range", GATED: "gated"}  # fmt: skip
 
 
 def range_measurement(x: np.ndarray, q_s: np.ndarray) -> np.ndarray:
@@ -97,7 +79,7 @@ def range_difference_noise(
 
     ``mean_squared_ranges`` holds ``mean_f(d_i²)`` per sonar.
 
-    - ``derived`` (design.md §1): ``v̄ = d̄1 v1 − d̄2 v2 + ½(v1² − v2²)``, so
+    - ``derived`` (the exact moments of the paper's ``Y``): ``v̄ = d̄1 v1 − d̄2 v2 + ½(v1² − v2²)``, so
       ``m = ½(η1 − η2)`` and ``Γ = η1 d̄1² + η2 d̄2² + ½(η1² + η2²)`` with
       ``d̄i² ≈ max(mean_f(di²) − ηi, 0)``.
     - ``paper_printed``: the paper's ``m = η1 + η2`` and
@@ -132,7 +114,7 @@ def range_difference_measurement(
     ``Y = ½(z1² − z2²)`` where ``z_i = d_i + w_i``, ``w_i ~ N(0, σ_i²)`` with
     ``σ² = variances``. Then ``Y = q_sᵀ q + v̄`` with ``v̄ = d1 w1 − d2 w2 + ½(w1² − w2²)``,
     mean ``m = ½(σ1² − σ2²)`` and variance ``Γ = σ1² d1² + σ2² d2² + ½(σ1⁴ + σ2⁴)``
-    (design.md §1, the ``derived`` noise model). The unknown ``d_i²`` are estimated by
+    (the ``derived`` noise model). The unknown ``d_i²`` are estimated by
     ``max(s_i − σ_i², 0)`` where ``s_i`` is ``squared_ranges[i]`` (e.g. the mean over the
     f samples of ``d_i²``) or, if not given, ``z_i²``.
 

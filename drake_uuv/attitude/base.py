@@ -1,0 +1,86 @@
+"""What every attitude generator shares: the command ``u2`` and the published plan."""
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, LeafSystem
+
+from drake_uuv.models.attitude_plans import attitude_command
+from drake_uuv.models.so3 import exp_so3
+
+
+class AttitudeGenerator(LeafSystem):
+    """Base of the attitude generators: ``u2(k) = Log(R̄(k) R(k)ᵀ) / t`` so that
+    ``R(k+1) = R̄(k)``, for the desired attitude ``R̄(k)`` a subclass supplies.
+
+    With ``max_angular_rate`` the command is scaled down to that norm: the attitude then moves
+    towards ``R̄(k)`` along the same geodesic without reaching it in one step. ``u2`` is a
+    world-frame rate, as the plant (paper eq. 2) left-multiplies by ``Exp(u2 t)``.
+
+    The generator also publishes its *plan*, the attitudes ``R(k+1)`` and ``R(k+2)`` it will
+    produce, for a tracking controller that feeds the turning reference ``R q*`` forward.
+    ``R(k+1) = Exp(u2(k) t) R(k)`` is always known; ``R(k+2)`` rolls the generator's own law one
+    step further where a subclass knows ``R̄(k+1)`` (:meth:`next_desired_attitude`), and is
+    ``R(k+1)`` otherwise.
+
+    Subclasses override :meth:`desired_attitude` (and :meth:`next_desired_attitude`), and
+    may declare input ports of their own before calling :meth:`_declare_outputs`.
+
+    Common ports:
+
+    - input ``R_WB`` (9, row-major): the current attitude ``R(k)``.
+    - output ``u2_W`` (3): the angular velocity command ``u2`` [rad/s], world frame.
+    - output ``R_WB_plan`` (18): the planned ``R(k+1)`` and ``R(k+2)``, each row-major.
+    """
+
+    def __init__(self, time_step: float, max_angular_rate: float | None = None) -> None:
+        super().__init__()
+        self._time_step = float(time_step)
+        self._max_rate = max_angular_rate
+        self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
+
+    def _declare_outputs(self) -> None:
+        """Call at the end of a subclass ``__init__``, after its own input ports."""
+        self.DeclareVectorOutputPort("u2_W", 3, self._calc_rate)
+        self.DeclareVectorOutputPort("R_WB_plan", 18, self._calc_plan)
+
+    @property
+    def time_step(self) -> float:
+        return self._time_step
+
+    def step_index(self, context: Context) -> int:
+        """The sample index k of the context's time."""
+        return round(context.get_time() / self._time_step)
+
+    def desired_attitude(self, context: Context) -> np.ndarray | None:
+        """``R̄(k)``, or None to hold the attitude."""
+        raise NotImplementedError
+
+    def next_desired_attitude(self, context: Context) -> np.ndarray | None:
+        """``R̄(k+1)`` if it is known at step k, else None (the plan then holds ``R(k+1)``)."""
+        return None
+
+    def _command(self, R_desired: np.ndarray, R_WB: np.ndarray) -> np.ndarray:
+        return attitude_command(R_desired, R_WB, self._time_step, self._max_rate)
+
+    def _calc_rate(self, context: Context, output: BasicVector) -> None:
+        R_desired = self.desired_attitude(context)
+        if R_desired is None:
+            output.SetZero()
+            return
+        output.set_value(self._command(R_desired, self._attitude_port.Eval(context).reshape(3, 3)))
+
+    def planned_attitudes(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        """``(R(k+1), R(k+2))`` as this generator will command them (see the class notes)."""
+        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
+        R_desired = self.desired_attitude(context)
+        if R_desired is None:
+            return R_WB, R_WB
+        t = self._time_step
+        R_next = exp_so3(self._command(R_desired, R_WB) * t) @ R_WB
+        R_desired_next = self.next_desired_attitude(context)
+        if R_desired_next is None:
+            return R_next, R_next
+        return R_next, exp_so3(self._command(R_desired_next, R_next) * t) @ R_next
+
+    def _calc_plan(self, context: Context, output: BasicVector) -> None:
+        R_next, R_after = self.planned_attitudes(context)
+        output.set_value(np.concatenate([R_next.ravel(), R_after.ravel()]))

@@ -1,0 +1,24 @@
+"""The attitude slot's factory: the system of each variant of ``scenario.attitude``."""
+
+from collections.abc import Callable
+
+from drake_uuv.attitude.base import AttitudeGenerator
+from drake_uuv.attitude.fixed_attitude import FixedAttitudeGenerator
+from drake_uuv.attitude.random_attitude import RandomAttitudeGenerator
+from drake_uuv.attitude.trajectory_attitude import TrajectoryAttitudeGenerator
+from drake_uuv.scenario import FixedAttitude, RandomAttitude, Scenario, TrajectoryAttitude
+
+#: Variant dataclass → the constructor of its system from a scenario.
+ATTITUDE_GENERATORS: dict[type, Callable[[Scenario], AttitudeGenerator]] = {
+    FixedAttitude: FixedAttitudeGenerator.from_scenario,
+    RandomAttitude: RandomAttitudeGenerator.from_scenario,
+    TrajectoryAttitude: TrajectoryAttitudeGenerator.from_scenario,
+}
+
+
+def make_attitude_generator(scenario: Scenario) -> AttitudeGenerator:
+    """The attitude generator of ``scenario.attitude``'s variant."""
+    make = ATTITUDE_GENERATORS.get(type(scenario.attitude))
+    if make is None:
+        raise TypeError(f"attitude: no system for !{type(scenario.attitude).__name__}")
+    return make(scenario)

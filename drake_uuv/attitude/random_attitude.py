@@ -1,0 +1,49 @@
+"""The paper's Algorithm 1: a uniformly random attitude every step."""
+
+import numpy as np
+from pydrake.common import RandomDistribution
+from pydrake.systems.framework import Context
+
+from drake_uuv.attitude.base import AttitudeGenerator
+from drake_uuv.models.so3 import matrix_from_quaternion, norm
+from drake_uuv.primitives.random_input import declare_random_input
+from drake_uuv.scenario import Scenario
+
+
+class RandomAttitudeGenerator(AttitudeGenerator):
+    """Algorithm 1: ``R̄(k)`` uniformly random on SO(3), so ``R(k+1) = R̄(k)``.
+
+    A normalised standard-normal 4-vector is a uniformly distributed unit quaternion; it
+    arrives on a random input port (fed by a seeded ``RandomSource`` in the diagram), so the
+    system itself is deterministic given its inputs. ``R̄(k+1)`` is drawn only at step k+1, so
+    the plan holds ``R(k+2) = R(k+1)``.
+
+    .. pydrake_system::
+
+        name: RandomAttitudeGenerator
+        input_ports:
+        - R_WB
+        - rotation_noise
+        output_ports:
+        - u2_W
+        - R_WB_plan
+
+    - ``rotation_noise`` (4, random, standard normal): the quaternion before normalising.
+    - The other ports as in :class:`~drake_uuv.attitude.base.AttitudeGenerator`.
+    """
+
+    def __init__(self, time_step: float, max_angular_rate: float | None = None) -> None:
+        super().__init__(time_step, max_angular_rate)
+        self._noise_port = declare_random_input(
+            self, "rotation_noise", 4, RandomDistribution.kGaussian
+        )
+        self._declare_outputs()
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> "RandomAttitudeGenerator":
+        """The generator of ``scenario.attitude``."""
+        return cls(scenario.time_step, scenario.attitude.max_angular_rate)
+
+    def desired_attitude(self, context: Context) -> np.ndarray | None:
+        quaternion = self._noise_port.Eval(context)
+        return matrix_from_quaternion(quaternion / norm(quaternion))

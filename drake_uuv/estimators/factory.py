@@ -1,0 +1,23 @@
+"""The estimator slot's factory: the system of each variant of ``scenario.estimator``."""
+
+from collections.abc import Callable
+
+from drake_uuv.estimators.base import RelativeStateEstimator
+from drake_uuv.estimators.kalman_filter import RangeDifferenceKalmanFilter
+from drake_uuv.estimators.raw_range_filter import RawRangeEstimator
+from drake_uuv.scenario import Ekf, Iekf, PaperKf, Scenario
+
+#: Variant dataclass → the constructor of its system from a scenario.
+ESTIMATORS: dict[type, Callable[[Scenario], RelativeStateEstimator]] = {
+    PaperKf: RangeDifferenceKalmanFilter.from_scenario,
+    Ekf: RawRangeEstimator.from_scenario,
+    Iekf: RawRangeEstimator.from_scenario,
+}
+
+
+def make_estimator(scenario: Scenario) -> RelativeStateEstimator:
+    """The estimator of ``scenario.estimator``'s variant."""
+    make = ESTIMATORS.get(type(scenario.estimator))
+    if make is None:
+        raise TypeError(f"estimator: no system for !{type(scenario.estimator).__name__}")
+    return make(scenario)

@@ -1,0 +1,86 @@
+"""The estimator slot's variants: one dataclass each, chosen in YAML by its tag.
+
+``estimator: !Ekf {gate_probability: 0.99}`` selects the EKF; every variant shares the fields
+of :class:`EstimatorOptions`. The factory that builds the system of each variant is
+:func:`drake_uuv.estimators.make_estimator`.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drake_uuv.scenario.validation import (
+    check_choice,
+    check_positive,
+    check_probability,
+    check_spd,
+    check_vector,
+    fail,
+)
+
+NOISE_MODELS = ("derived", "paper_printed")
+
+
+def _identity(n: int) -> list[list[float]]:
+    return np.eye(n).tolist()
+
+
+@dataclass
+class EstimatorOptions:
+    """Fields every estimator has."""
+
+    # Mean m and variance Γ of the noise of Y = ½(d1² − d2²). "derived": the exact moments of
+    # the paper's Y, v̄ = d̄1 v1 − d̄2 v2 + ½(v1² − v2²) (mean ½(η1 − η2), variance
+    # η1 d̄1² + η2 d̄2² + ½(η1² + η2²)); "paper_printed": the paper's printed formula, which is
+    # not consistent with its own Y (kept to measure the difference). The sonar publishes m
+    # and Γ with it; the paper's KF and any linear start use them.
+    noise_model: str = "derived"
+    # x̂(0|−1) = [q̂, ϑ̂] and P(0|−1). The paper sets every unstated initial value to zero.
+    initial_estimate: list[float] = field(default_factory=lambda: [0.0] * 6)
+    initial_covariance: list[list[float]] = field(default_factory=lambda: _identity(6))
+    # Reject a measurement whose NIS exceeds the χ² quantile of this probability; None: no gate.
+    gate_probability: float | None = None
+
+    def validate(self, name: str) -> None:
+        check_choice(f"{name}.noise_model", self.noise_model, NOISE_MODELS)
+        check_vector(f"{name}.initial_estimate", self.initial_estimate, 6)
+        check_spd(f"{name}.initial_covariance", self.initial_covariance, 6)
+        check_probability(f"{name}.gate_probability", self.gate_probability)
+
+
+@dataclass
+class PaperKf(EstimatorOptions):
+    """The paper's linear Kalman filter on ``Y = ½(d1² − d2²)`` (its eq. 9)."""
+
+
+@dataclass
+class RawRangeOptions(EstimatorOptions):
+    """Fields of the filters on the two raw ranges, which start as the paper's linear KF."""
+
+    # The linear start hands over once trace(P_qq) ≤ linear_start_position_variance [m²], or
+    # after linear_start_max_steps linear updates (None: no forced hand-over; 0: no linear
+    # start). See drake_uuv/estimators/raw_range_filter.py.
+    linear_start_position_variance: float = 0.5
+    linear_start_max_steps: int | None = None
+
+    def validate(self, name: str) -> None:
+        super().validate(name)
+        check_positive(
+            f"{name}.linear_start_position_variance", self.linear_start_position_variance
+        )
+        if self.linear_start_max_steps is not None and self.linear_start_max_steps < 0:
+            fail(f"{name}.linear_start_max_steps", "must be ≥ 0", self.linear_start_max_steps)
+
+
+@dataclass
+class Ekf(RawRangeOptions):
+    """Extended Kalman filter on both raw ranges, all f samples."""
+
+
+@dataclass
+class Iekf(RawRangeOptions):
+    """Iterated EKF (Gauss–Newton with a backtracking step) on both raw ranges."""
+
+
+#: The estimator slot. The first member is the default of an untagged section.
+EstimatorConfig = PaperKf | Ekf | Iekf

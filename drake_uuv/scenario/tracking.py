@@ -1,0 +1,75 @@
+"""The tracking slot's variants: the law holding the target at q*, one dataclass each.
+
+The factory that builds the system of each variant is
+:func:`drake_uuv.tracking.make_tracking_controller`.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+from drake_uuv.scenario.validation import check_positive, check_vector, fail
+
+# The paper proves bounded tracking for α in (1 − 1/√2, 1 + 1/√2).
+ALPHA_PROVEN_INTERVAL = (1.0 - 1.0 / math.sqrt(2.0), 1.0 + 1.0 / math.sqrt(2.0))
+
+
+@dataclass
+class TrackingOptions:
+    """Fields every tracking law has."""
+
+    # q*, the desired relative position q = p_WU − p_WT, in the body frame (the paper's).
+    desired_relative_position: list[float] = field(default_factory=lambda: [-2.0, -2.0, 0.0])
+    # Largest |world acceleration| [m/s²]; None means unlimited (the paper).
+    max_acceleration: float | None = None
+
+    def validate(self, name: str) -> None:
+        check_vector(f"{name}.desired_relative_position", self.desired_relative_position, 3)
+        if self.max_acceleration is not None:
+            check_positive(f"{name}.max_acceleration", self.max_acceleration)
+
+
+@dataclass
+class PaperTracking(TrackingOptions):
+    """The paper's law (§III-B): ``u1 = −(2α/t²)(Rᵀ q̂ − q*) − (2/t) Rᵀ ϑ̂``."""
+
+    alpha: float = 1.2
+    # The paper proves bounded tracking only for α in ALPHA_PROVEN_INTERVAL.
+    allow_unproven_alpha: bool = False
+
+    def validate(self, name: str) -> None:
+        super().validate(name)
+        check_positive(f"{name}.alpha", self.alpha)
+        low, high = ALPHA_PROVEN_INTERVAL
+        if not low < self.alpha < high and not self.allow_unproven_alpha:
+            fail(
+                f"{name}.alpha",
+                f"must be in ({low:.4f}, {high:.4f}) where the paper proves bounded tracking "
+                f"(set {name}.allow_unproven_alpha=true to run it anyway)",
+                self.alpha,
+            )
+
+
+@dataclass
+class LqrTracking(TrackingOptions):
+    """A discrete LQR gain on the relative double integrator, with the attitude plan's
+    reference fed forward. ``Q = diag(position_weight I, velocity_weight I)`` on the
+    relative-state error and ``R = input_weight I`` on the world acceleration; the defaults
+    follow Bryson's rule (weight = 1/acceptable²): 1 m of position error, 2 m/s of velocity
+    error, √10 ≈ 3.2 m/s² of acceleration."""
+
+    position_weight: float = 1.0
+    velocity_weight: float = 0.25
+    input_weight: float = 0.1
+    # Feed the attitude plan's reference velocity and acceleration forward (false: regulate to
+    # the current point R q* only, which lags the turning reference).
+    feedforward: bool = True
+
+    def validate(self, name: str) -> None:
+        super().validate(name)
+        check_positive(f"{name}.position_weight", self.position_weight)
+        check_positive(f"{name}.velocity_weight", self.velocity_weight, strict=False)
+        check_positive(f"{name}.input_weight", self.input_weight)
+
+
+#: The tracking slot. The first member is the default of an untagged section.
+TrackingConfig = PaperTracking | LqrTracking
