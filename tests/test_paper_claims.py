@@ -13,13 +13,15 @@ from drake_uuv.analysis.stats import bootstrap_interval, wilson_interval
 from drake_uuv.montecarlo import DIVERGENCE_THRESHOLD, Study, StudyResult, run_studies
 from drake_uuv.scenario import load_scenario
 
+pytestmark = pytest.mark.slow
+
 RUNS = 40
 SHORT = ["steps=300", "steady_state_start=100"]
 VARIANTS = {
-    "fixed": ["attitude.mode=fixed"],
-    "random": ["attitude.mode=random"],
-    "trajectory": ["attitude.mode=trajectory"],
-    "trajectory_paper_printed": ["attitude.mode=trajectory", "estimator.noise_model=paper_printed"],
+    "fixed": ["attitude=!FixedAttitude"],
+    "random": ["attitude=!RandomAttitude"],
+    "trajectory": ["attitude=!TrajectoryAttitude"],
+    "trajectory_paper_printed": ["estimator.noise_model=paper_printed"],
 }
 
 

@@ -55,23 +55,6 @@ def range_jacobian(x: np.ndarray, q_s: np.ndarray) -> np.ndarray:
     return H
 
 
-def mean_ranges(range_samples: np.ndarray, samples_per_step: int) -> np.ndarray:
-    """Per-sonar sample mean of ``range_samples`` (length ``2f``: the f samples of s1, then s2).
-
-    This is the sufficient statistic of the raw ranges; its noise covariance is
-    :func:`range_noise_covariance`.
-    """
-    f = int(samples_per_step)
-    samples = np.asarray(range_samples, dtype=float).reshape(2, f)
-    return samples.mean(axis=1)
-
-
-def range_noise_covariance(eta: np.ndarray, samples_per_step: int) -> np.ndarray:
-    """``R = diag(η1/f, η2/f)``: covariance of the per-sonar mean of ``f`` samples."""
-    eta = np.asarray(eta, dtype=float).reshape(2)
-    return np.diag(eta / float(samples_per_step))
-
-
 def range_difference_noise(
     noise_model: str, noise_variances: np.ndarray, mean_squared_ranges: np.ndarray
 ) -> tuple[float, float]:
@@ -104,32 +87,3 @@ def range_difference_noise(
     raise ValueError(
         f"estimator.noise_model: must be derived or paper_printed, got {noise_model!r}"
     )
-
-
-def range_difference_measurement(
-    ranges: np.ndarray, variances: np.ndarray, squared_ranges: np.ndarray | None = None
-) -> tuple[float, float, float]:
-    """The paper's linear measurement from two ranges: ``(Y, m, Γ)`` with the derived moments.
-
-    ``Y = ½(z1² − z2²)`` where ``z_i = d_i + w_i``, ``w_i ~ N(0, σ_i²)`` with
-    ``σ² = variances``. Then ``Y = q_sᵀ q + v̄`` with ``v̄ = d1 w1 − d2 w2 + ½(w1² − w2²)``,
-    mean ``m = ½(σ1² − σ2²)`` and variance ``Γ = σ1² d1² + σ2² d2² + ½(σ1⁴ + σ2⁴)``
-    (the ``derived`` noise model). The unknown ``d_i²`` are estimated by
-    ``max(s_i − σ_i², 0)`` where ``s_i`` is ``squared_ranges[i]`` (e.g. the mean over the
-    f samples of ``d_i²``) or, if not given, ``z_i²``.
-
-    The paper's KF uses the first sample of each sonar with ``σ² = η``; a raw-range filter
-    that initialises from the linear KF uses the sample means with ``σ² = η/f``.
-    """
-    z = np.asarray(ranges, dtype=float).reshape(2)
-    s2 = np.asarray(variances, dtype=float).reshape(2)
-    sq = z * z if squared_ranges is None else np.asarray(squared_ranges, dtype=float).reshape(2)
-    m, Gamma = range_difference_noise("derived", s2, sq)
-    return float(0.5 * (z[0] ** 2 - z[1] ** 2)), float(m), float(Gamma)
-
-
-def linear_measurement_matrix(q_s: np.ndarray) -> np.ndarray:
-    """``C = [q_sᵀ, 0₁ₓ₃]`` (shape ``(1, 6)``) of the paper's measurement ``Y = q_sᵀ q + v̄``."""
-    C = np.zeros((1, 6))
-    C[0, :3] = np.asarray(q_s, dtype=float).reshape(3)
-    return C

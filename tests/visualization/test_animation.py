@@ -10,17 +10,12 @@ import numpy as np
 import pytest
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource
 from synthetic_log import BASELINE_B, TIME_STEP, synthetic_log
 
-from drake_uuv.visualization import (
-    LiveMeshcatVisualizer,
-    MeshcatScene,
-    add_live_meshcat_visualizer,
-    record_animation,
-)
-from drake_uuv.visualization.animation import (
+from drake_uuv.diagram import make_uuv_diagram
+from drake_uuv.scenario import load_scenario
+from drake_uuv.visualization import LiveMeshcatVisualizer, MeshcatScene, record_animation
+from drake_uuv.visualization.scene import (
     SCENE_ROOT,
     SceneFrame,
     SceneStyle,
@@ -63,7 +58,7 @@ def test_record_writes_self_contained_page(tmp_path: Path, short_log, meshcat) -
     for prop in (b".position", b".quaternion", b".scale", b".visible"):
         assert prop in animation
     # One segment per step after the first, for each trajectory; each is animated.
-    steps = len(short_log["p_uuv"])
+    steps = len(short_log["p_WU"])
     for trail in ("uuv", "target"):
         for k in (0, steps - 2):
             segment = f"{SCENE_ROOT}/trails/{trail}/{k:06d}"
@@ -78,7 +73,7 @@ def test_trail_length_controls_visible_segments(tmp_path: Path, short_log, meshc
     record_animation(
         short_log, BASELINE_B, TIME_STEP, tmp_path / "a.html", trail_length=10, meshcat=meshcat
     )
-    steps = len(short_log["p_uuv"])
+    steps = len(short_log["p_WU"])
 
     def visible(k: int) -> bool:
         packed = meshcat._GetPackedProperty(f"{SCENE_ROOT}/trails/uuv/{k:06d}", "visible")
@@ -111,11 +106,11 @@ def test_playback_speed_sets_frame_rate(tmp_path: Path, short_log, meshcat) -> N
 
 def test_rejects_bad_input(tmp_path: Path, short_log) -> None:
     log = dict(short_log)
-    del log["q_hat"]
-    with pytest.raises(ValueError, match=r"missing \['q_hat'\]"):
+    del log["x_TU_hat"]
+    with pytest.raises(ValueError, match=r"missing \['x_TU_hat'\]"):
         record_animation(log, BASELINE_B, TIME_STEP, tmp_path / "a.html")
-    log = dict(short_log, p_target=short_log["p_target"][:-1])
-    with pytest.raises(ValueError, match=r"log\['p_target'\] has shape"):
+    log = dict(short_log, p_WT=short_log["p_WT"][:-1])
+    with pytest.raises(ValueError, match=r"log\['p_WT'\] has shape"):
         record_animation(log, BASELINE_B, TIME_STEP, tmp_path / "a.html")
     with pytest.raises(ValueError, match="time_step must be > 0"):
         record_animation(short_log, BASELINE_B, 0.0, tmp_path / "a.html")
@@ -158,7 +153,7 @@ def test_camera_frames_target_and_vehicle(short_log, meshcat) -> None:
     # vehicle at load and for 90 % of the run inside Meshcat's 75° vertical field
     # of view, and no farther than needed.
     np.testing.assert_allclose(scene.camera_target, 0.0)
-    distances = np.linalg.norm(short_log["p_uuv"] - short_log["p_target"], axis=1)
+    distances = np.linalg.norm(short_log["p_WU"] - short_log["p_WT"], axis=1)
     half_fov = np.sin(np.deg2rad(37.5))
     assert distances[0] / scene.camera_distance() < half_fov
     assert np.mean(distances / scene.camera_distance() < half_fov) >= 0.9
@@ -168,11 +163,11 @@ def test_camera_frames_target_and_vehicle(short_log, meshcat) -> None:
 def _fix_inputs(system: LiveMeshcatVisualizer, context, frame: SceneFrame) -> None:
     P = np.eye(6)
     P[:3, :3] = frame.P_qq
-    system.get_uuv_state_input_port().FixValue(context, np.r_[frame.p_WU, np.zeros(3)])
-    system.get_R_WB_input_port().FixValue(context, frame.R_WB.reshape(-1))
-    system.get_target_state_input_port().FixValue(context, np.r_[frame.p_WT, np.zeros(3)])
-    system.get_x_hat_input_port().FixValue(context, np.r_[frame.q_hat, np.zeros(3)])
-    system.get_P_input_port().FixValue(context, P.reshape(-1))
+    system.GetInputPort("p_WU").FixValue(context, frame.p_WU)
+    system.GetInputPort("R_WB").FixValue(context, frame.R_WB.reshape(-1))
+    system.GetInputPort("p_WT").FixValue(context, frame.p_WT)
+    system.GetInputPort("x_TU_hat").FixValue(context, np.r_[frame.q_hat, np.zeros(3)])
+    system.GetInputPort("P_TU").FixValue(context, P.reshape(-1))
 
 
 def test_live_visualizer_ports_and_drawing(short_log, meshcat) -> None:
@@ -181,7 +176,7 @@ def test_live_visualizer_ports_and_drawing(short_log, meshcat) -> None:
         system.get_input_port(i).get_name(): system.get_input_port(i).size()
         for i in range(system.num_input_ports())
     }
-    assert sizes == {"uuv_state": 6, "R_WB": 9, "target_state": 6, "x_hat": 6, "P": 36}
+    assert sizes == {"p_WU": 3, "R_WB": 9, "p_WT": 3, "x_TU_hat": 6, "P_TU": 36}
     assert system.num_output_ports() == 0
 
     context = system.CreateDefaultContext()
@@ -198,7 +193,7 @@ def test_live_visualizer_ports_and_drawing(short_log, meshcat) -> None:
     assert not meshcat.HasPath(f"{SCENE_ROOT}/trails/uuv/000006")
     # The scene is drawn where the inputs say: the follow transform is −p_target.
     packed = meshcat._GetPackedTransform(SCENE_ROOT)
-    p_target = short_log["p_target"][0]
+    p_target = short_log["p_WT"][0]
     # The message ends with the column-major 4×4 matrix as 16 msgpack float64s
     # (marker 0xcb, then 8 big-endian bytes each).
     tail = np.frombuffer(packed[-16 * 9 :], dtype=np.uint8).reshape(16, 9)
@@ -212,25 +207,16 @@ def test_live_visualizer_ports_and_drawing(short_log, meshcat) -> None:
     assert not meshcat.HasPath(f"{SCENE_ROOT}/trails/uuv/000005")
 
 
-def test_add_live_meshcat_visualizer_connects_all_inputs(short_log, meshcat) -> None:
-    frame = SceneFrame.from_log(short_log, 5)
-    builder = DiagramBuilder()
-    values = {
-        "uuv_state": np.r_[frame.p_WU, np.zeros(3)],
-        "R_WB": frame.R_WB.reshape(-1),
-        "target_state": np.r_[frame.p_WT, np.zeros(3)],
-        "x_hat": np.r_[frame.q_hat, np.zeros(3)],
-        "P": np.asarray(short_log["P"][5]).reshape(-1),
-    }
-    ports = {
-        name: builder.AddNamedSystem(name, ConstantVectorSource(value)).get_output_port()
-        for name, value in values.items()
-    }
-    visualizer = add_live_meshcat_visualizer(
-        builder, meshcat, BASELINE_B, TIME_STEP, trail_length=5, **ports
-    )
-    diagram = builder.Build()
-    assert visualizer.get_name() == "meshcat_scene"
-    Simulator(diagram).AdvanceTo(1.0)
-    packed = meshcat._GetPackedProperty(f"{SCENE_ROOT}/estimate/ellipsoid", "scale")
-    assert packed
+def test_the_builder_wires_the_live_visualizer_by_name(meshcat) -> None:
+    scenario = load_scenario("paper", ["steps=6", "steady_state_start=0"])
+    built = make_uuv_diagram(scenario, meshcat=meshcat)
+    visualizer = built.diagram.GetSubsystemByName("meshcat_visualizer")
+    assert isinstance(visualizer, LiveMeshcatVisualizer)
+    simulator = Simulator(built.diagram)
+    simulator.AdvanceTo(2.0)
+    # The last publish drew the scene around the target where the target system says it is.
+    target = built.systems["target"]
+    p_WT = target.GetOutputPort("p_WT").Eval(target.GetMyContextFromRoot(simulator.get_context()))
+    tail = np.frombuffer(meshcat._GetPackedTransform(SCENE_ROOT)[-16 * 9 :], dtype=np.uint8)
+    matrix = np.frombuffer(tail.reshape(16, 9)[:, 1:].tobytes(), dtype=">f8").reshape(4, 4).T
+    np.testing.assert_allclose(matrix[:3, 3], -p_WT)

@@ -21,7 +21,7 @@ from pydrake.geometry import Meshcat
 from synthetic_log import BASELINE_B, TIME_STEP, synthetic_log
 
 from drake_uuv.visualization import MeshcatScene, SceneStyle, record_animation
-from drake_uuv.visualization.animation import MESHCAT_DEFAULT_FOV_DEG
+from drake_uuv.visualization.scene import MESHCAT_DEFAULT_FOV_DEG
 
 CHROMIUM = find_chromium()
 pytestmark = pytest.mark.skipif(
@@ -104,7 +104,7 @@ def test_animation_renders_in_headless_chromium(tmp_path: Path) -> None:
     # The framing the page was written with (same code, fresh Meshcat).
     scene = MeshcatScene(Meshcat(), BASELINE_B, style=style)
     scene.frame_log(log)
-    reach = float(np.max(np.linalg.norm(log["p_uuv"] - log["p_target"], axis=1)))
+    reach = float(np.max(np.linalg.norm(log["p_WU"] - log["p_WT"], axis=1)))
     expected = expected_areas(scene, style, reach)
 
     profile = tmp_path / "chromium-profile"

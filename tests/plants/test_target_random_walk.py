@@ -1,0 +1,53 @@
+"""The target's random walk: ports, one step in closed form, the colouring of the noise."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import AddRandomInputs
+
+from drake_uuv.plants import TargetRandomWalk
+from drake_uuv.testing import discrete_update, fixed_context
+
+T = 0.5
+W = np.array([[0.004, 0.001, 0.0], [0.001, 0.002, 0.0], [0.0, 0.0, 0.001]])
+
+
+def test_ports_and_random_input() -> None:
+    target = TargetRandomWalk(T, W, np.array([1.0, 2.0, 2.0]), np.array([0.02, 0.1, 0.1]))
+    assert target.GetInputPort("acceleration_noise").size() == 3
+    # Declared as a random port: Drake's AddRandomInputs finds it and feeds it.
+    builder = DiagramBuilder()
+    builder.AddSystem(target)
+    assert AddRandomInputs(T, builder) == 1
+    assert target.GetOutputPort("p_WT").size() == 3 and target.GetOutputPort("v_WT").size() == 3
+    assert not target.HasAnyDirectFeedthrough()
+
+
+def test_one_step_is_the_double_integrator_with_coloured_noise() -> None:
+    p0, v0 = np.array([1.0, 2.0, 2.0]), np.array([0.02, 0.1, 0.1])
+    target = TargetRandomWalk(T, W, p0, v0)
+    xi = np.array([0.5, -1.5, 2.0])
+    context = fixed_context(target, acceleration_noise=xi)
+    assert_allclose(target.GetOutputPort("p_WT").Eval(context), p0)
+    assert_allclose(target.GetOutputPort("v_WT").Eval(context), v0)
+    u = np.linalg.cholesky(W) @ xi
+    assert_allclose(discrete_update(target, context, 0), p0 + T * v0 + 0.5 * T * T * u, rtol=1e-14)
+    assert_allclose(discrete_update(target, context, 1), v0 + T * u, rtol=1e-14)
+
+
+@pytest.mark.parametrize("seed", [3])
+def test_acceleration_covariance_is_W(seed: int) -> None:
+    """chol(W) ξ has covariance W: check the colouring on many fixed standard-normal draws."""
+    target = TargetRandomWalk(T, W, np.zeros(3), np.zeros(3))
+    rng = np.random.default_rng(seed)
+    n = 4000
+    accelerations = np.empty((n, 3))
+    context = fixed_context(target, acceleration_noise=np.zeros(3))
+    for i in range(n):
+        target.GetInputPort("acceleration_noise").FixValue(context, rng.standard_normal(3))
+        accelerations[i] = discrete_update(target, context, 1) / T
+    sample = np.cov(accelerations.T)
+    # Standard error of a covariance entry: sqrt((W_ii W_jj + W_ij²) / n); allow 4 of them.
+    tolerance = 4 * np.sqrt((np.outer(np.diag(W), np.diag(W)) + W**2) / n)
+    assert np.all(np.abs(sample - W) < tolerance)
