@@ -1,6 +1,6 @@
 """A long paper-scenario run: no NaN or Inf, bounded error, orthonormal attitude, flat memory.
 
-    python benchmarks/bench_long_run.py [--steps 100000] [--set tracking.type=lqr ...]
+    python benchmarks/bench_long_run.py [--steps 100000] [--set tracking=!LqrTracking ...]
 
 Prints the error over successive windows (it must not grow), the largest attitude
 orthonormality error, and the resident memory against the size of the logs: the loggers are

@@ -58,6 +58,26 @@ def log_from_loggers(built: UuvDiagram, context: Context, steps: int) -> dict[st
     return log
 
 
+# Keys of the log format before the ports took frame notation (drake_uuv 0.1): old → new.
+_RENAMED_KEYS = {
+    "p_uuv": "p_WU", "v_uuv": "v_WU", "p_target": "p_WT", "v_target": "v_WT", "q_s": "b_W",
+    "P": "P_TU", "u1": "u1_B", "u2": "u2_W", "a_world": "u1_W",
+}  # fmt: skip
+
+
+def read_log(path: Path) -> dict[str, np.ndarray]:
+    """A run's ``log.npz`` as a dict, in the current format (keys = signal names).
+
+    A log written before the ports took frame notation (``p_uuv``, ``q_hat`` and ``v_hat``,
+    ``P``, ``a_world`` …) is read too and returned with the current keys.
+    """
+    with np.load(path) as data:
+        log = {key: data[key] for key in data.files}
+    if "q_hat" in log and "v_hat" in log:
+        log["x_TU_hat"] = np.concatenate([log.pop("q_hat"), log.pop("v_hat")], axis=1)
+    return {_RENAMED_KEYS.get(key, key): value for key, value in log.items()}
+
+
 def _monitor_message(error: RuntimeError) -> str:
     """The monitor's own message out of the Simulator's wrapping text."""
     text = " ".join(str(error).split())
