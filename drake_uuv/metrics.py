@@ -4,6 +4,7 @@ import numpy as np
 
 from drake_uuv.models.measurement import VALID, range_difference_noise
 from drake_uuv.models.pcrlb import bound_rmse, measurement_information, pcrlb_recursion
+from drake_uuv.models.tracking_laws import desired_relative_positions
 from drake_uuv.scenario import Scenario
 
 
@@ -17,11 +18,14 @@ def errors(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, np.ndarr
     q = log["p_WU"] - log["p_WT"]
     velocity = log["v_WU"] - log["v_WT"]
     e = np.concatenate([q, velocity], axis=1) - log["x_TU_hat"]
-    q_star = np.asarray(scenario.tracking.desired_relative_position)
+    tracking = scenario.tracking
     return {
         "position": e[:, :3],
         "velocity": e[:, 3:],
-        "tracking": q - log["R_WB"] @ q_star,
+        "tracking": q
+        - desired_relative_positions(
+            log["R_WB"], tracking.desired_relative_position, tracking.reference_frame
+        ),
         "nees": np.einsum(
             "ki,ki->k", e, np.linalg.solve(log["P_TU"], e[:, :, np.newaxis])[:, :, 0]
         ),

@@ -7,10 +7,54 @@ produces a world acceleration ``a = R u1``; written as ``a = a_ff − K (x̂ −
 (:func:`closed_loop_eigenvalues`).
 """
 
+import math
+
 import numpy as np
 from pydrake.systems.controllers import DiscreteTimeLinearQuadraticRegulator
 
 from drake_uuv.models.motion import double_integrator
+
+#: Frames the desired relative position q* may be fixed in: the body (the paper's), the
+#: world, or the body's heading (yaw only).
+REFERENCE_FRAMES = ("body", "world", "heading")
+
+
+def heading_rotation(R_WB: np.ndarray) -> np.ndarray:
+    """``R_z(ψ)``, the rotation about world z by the body's heading ψ (the yaw of its x axis).
+
+    ψ = atan2(R₁₀, R₀₀), the Z-Y-X yaw; when the body's x axis is vertical (no heading), the
+    heading of its y axis stands in: ψ = atan2(−R₀₁, R₁₁).
+    """
+    R = np.asarray(R_WB, dtype=float).reshape(3, 3)
+    c, s = R[0, 0], R[1, 0]
+    if math.hypot(c, s) < 1e-9:
+        c, s = R[1, 1], -R[0, 1]
+    h = math.hypot(c, s)
+    c, s = c / h, s / h
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def reference_rotation(R_WB: np.ndarray, frame: str) -> np.ndarray:
+    """``R_WF``: the rotation from the frame F that q* is fixed in to the world, at attitude
+    ``R_WB``; the desired relative position is then ``r = R_WF q*`` (world frame)."""
+    if frame == "body":
+        return np.asarray(R_WB, dtype=float).reshape(3, 3)
+    if frame == "world":
+        return np.eye(3)
+    if frame == "heading":
+        return heading_rotation(R_WB)
+    raise ValueError(
+        f"reference_frame: must be one of {', '.join(REFERENCE_FRAMES)}, got {frame!r}"
+    )
+
+
+def desired_relative_positions(R_WB: np.ndarray, q_star: np.ndarray, frame: str) -> np.ndarray:
+    """``r(k) = R_WF(k) q*`` for a stack of attitudes ``R_WB`` (N×3×3): N×3, world frame."""
+    R_WB = np.asarray(R_WB, dtype=float).reshape(-1, 3, 3)
+    q_star = np.asarray(q_star, dtype=float)
+    if frame == "body":
+        return R_WB @ q_star
+    return np.stack([reference_rotation(R, frame) @ q_star for R in R_WB])
 
 
 def paper_gains(time_step: float, alpha: float) -> tuple[float, float]:
@@ -30,6 +74,9 @@ def paper_tracking_command(
     x_hat: np.ndarray, R_WB: np.ndarray, q_star_B: np.ndarray, k_p: float, k_v: float
 ) -> np.ndarray:
     """The paper's law (§III-B): ``u1 = −k_p (Rᵀ q̂ − q*) − k_v Rᵀ ϑ̂`` (body frame).
+
+    ``q_star_B`` is the desired relative position in the body frame: the paper's q* itself,
+    or ``Rᵀ R_WF q*`` for a q* fixed in another frame (:func:`reference_rotation`).
 
     Substituting it into the model gives ``ϑ(k+1) = −ϑ(k) + …``: the position error contracts
     for α in (1 − 1/√2, 1 + 1/√2) (and in fact for 0 < α < 2), but the relative velocity is

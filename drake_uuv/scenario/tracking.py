@@ -7,23 +7,30 @@ The factory that builds the system of each variant is
 import math
 from dataclasses import dataclass, field
 
-from drake_uuv.scenario.validation import check_positive, check_vector, fail
+from drake_uuv.scenario.validation import check_choice, check_positive, check_vector, fail
 
 # The paper proves bounded tracking for α in (1 − 1/√2, 1 + 1/√2).
 ALPHA_PROVEN_INTERVAL = (1.0 - 1.0 / math.sqrt(2.0), 1.0 + 1.0 / math.sqrt(2.0))
+# The frames q* may be fixed in.
+REFERENCE_FRAMES = ("body", "world", "heading")
 
 
 @dataclass
 class TrackingOptions:
     """Fields every tracking law has."""
 
-    # q*, the desired relative position q = p_WU − p_WT, in the body frame (the paper's).
+    # q*, the desired relative position q = p_WU − p_WT [m], in reference_frame.
     desired_relative_position: list[float] = field(default_factory=lambda: [-2.0, -2.0, 0.0])
+    # The frame q* is fixed in: "body" (the paper's: the desired point turns with the body, so
+    # under Algorithm 2 it sweeps a circle of radius |q*| around the target), "world" (fixed),
+    # or "heading" (turns with the body's yaw only).
+    reference_frame: str = "body"
     # Largest |world acceleration| [m/s²]; None means unlimited (the paper).
     max_acceleration: float | None = None
 
     def validate(self, name: str) -> None:
         check_vector(f"{name}.desired_relative_position", self.desired_relative_position, 3)
+        check_choice(f"{name}.reference_frame", self.reference_frame, REFERENCE_FRAMES)
         if self.max_acceleration is not None:
             check_positive(f"{name}.max_acceleration", self.max_acceleration)
 

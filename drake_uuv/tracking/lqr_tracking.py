@@ -48,12 +48,19 @@ from typing import Self
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
-from drake_uuv.models.tracking_laws import lqr_gain, reference_feedforward, saturate_norm
+from drake_uuv.models.tracking_laws import (
+    lqr_gain,
+    reference_feedforward,
+    reference_rotation,
+    saturate_norm,
+)
 from drake_uuv.scenario import Scenario
 
 
 class LqrTrackingController(LeafSystem):
-    """``a = sat(a_ff − K (Υ̂ − [r; ν]))``, ``u1 = Rᵀ a``, with ``r = R q*`` turning with R.
+    """``a = sat(a_ff − K (Υ̂ − [r; ν]))``, ``u1 = Rᵀ a``, with ``r = R_WF q*``: q* fixed in the
+    frame F of ``reference_frame`` (the body by default, so that r turns with R as in the
+    paper; or the world, or the body's heading).
 
     ``K`` from :func:`lqr_gain`; the reference ``[r; ν]`` and ``a_ff`` from the attitude plan by
     :func:`reference_feedforward`; ``sat`` is :func:`saturate_norm` (see the module notes for
@@ -82,16 +89,19 @@ class LqrTrackingController(LeafSystem):
     def __init__(
         self,
         time_step: float,
-        desired_relative_position_B: np.ndarray,
+        desired_relative_position: np.ndarray,
         position_weight: float,
         velocity_weight: float,
         input_weight: float,
         max_acceleration: float | None = None,
         feedforward: bool = True,
+        reference_frame: str = "body",
     ) -> None:
         super().__init__()
         self._time_step = float(time_step)
-        self._q_star = np.asarray(desired_relative_position_B, dtype=float)
+        self._q_star = np.asarray(desired_relative_position, dtype=float)
+        reference_rotation(np.eye(3), reference_frame)  # Fail early on a bad frame.
+        self._frame = reference_frame
         self._K, _ = lqr_gain(self._time_step, position_weight, velocity_weight, input_weight)
         self._max_acceleration = max_acceleration
         self._feedforward = feedforward
@@ -113,6 +123,7 @@ class LqrTrackingController(LeafSystem):
             c.input_weight,
             c.max_acceleration,
             c.feedforward,
+            c.reference_frame,
         )
 
     @property
@@ -124,12 +135,13 @@ class LqrTrackingController(LeafSystem):
         """``([r(k); ν(k)], a_ff(k))`` in the world frame (``([r(k); 0], 0)`` without the
         feed-forward)."""
         R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        r0 = R_WB @ self._q_star
+        frame, q_star = self._frame, self._q_star
+        r0 = reference_rotation(R_WB, frame) @ q_star
         if not self._feedforward:
             return np.concatenate([r0, np.zeros(3)]), np.zeros(3)
         plan = self._plan_port.Eval(context)
-        r1 = plan[:9].reshape(3, 3) @ self._q_star
-        r2 = plan[9:].reshape(3, 3) @ self._q_star
+        r1 = reference_rotation(plan[:9].reshape(3, 3), frame) @ q_star
+        r2 = reference_rotation(plan[9:].reshape(3, 3), frame) @ q_star
         return reference_feedforward(r0, r1, r2, self._time_step)
 
     def acceleration(self, context: Context) -> np.ndarray:

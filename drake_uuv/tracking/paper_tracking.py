@@ -5,7 +5,12 @@ from typing import Self
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
-from drake_uuv.models.tracking_laws import paper_gain_matrix, paper_gains, paper_tracking_command
+from drake_uuv.models.tracking_laws import (
+    paper_gain_matrix,
+    paper_gains,
+    paper_tracking_command,
+    reference_rotation,
+)
 from drake_uuv.scenario import Scenario
 
 
@@ -32,22 +37,27 @@ class PaperTrackingController(LeafSystem):
     - ``u1_B`` (3): the body-frame acceleration command [m/s²].
     - ``u1_W`` (3): the same acceleration in the world frame, ``R u1`` (the filter's input).
 
-    With ``max_acceleration`` the command is scaled down to that norm (direction kept); the law
-    is static, so there is nothing to wind up.
+    ``q*`` is fixed in ``reference_frame``: the body (the paper's), the world, or the body's
+    heading (:func:`~drake_uuv.models.tracking_laws.reference_rotation`); the law then uses
+    ``Rᵀ R_WF q*`` in place of q*. With ``max_acceleration`` the command is scaled down to that
+    norm (direction kept); the law is static, so there is nothing to wind up.
     """
 
     def __init__(
         self,
         time_step: float,
         alpha: float,
-        desired_relative_position_B: np.ndarray,
+        desired_relative_position: np.ndarray,
         max_acceleration: float | None = None,
+        reference_frame: str = "body",
     ) -> None:
         super().__init__()
         self._time_step = float(time_step)
         self._alpha = float(alpha)
         self._k_p, self._k_v = paper_gains(time_step, alpha)
-        self._q_star = np.asarray(desired_relative_position_B, dtype=float)
+        self._q_star = np.asarray(desired_relative_position, dtype=float)
+        reference_rotation(np.eye(3), reference_frame)  # Fail early on a bad frame.
+        self._frame = reference_frame
         self._max_acceleration = max_acceleration
         self._x_hat_port = self.DeclareVectorInputPort("x_TU_hat", 6)
         self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
@@ -63,6 +73,7 @@ class PaperTrackingController(LeafSystem):
             c.alpha,
             np.asarray(c.desired_relative_position),
             c.max_acceleration,
+            c.reference_frame,
         )
 
     @property
@@ -71,12 +82,12 @@ class PaperTrackingController(LeafSystem):
         return paper_gain_matrix(self._time_step, self._alpha)
 
     def _u1(self, context: Context) -> np.ndarray:
+        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
+        q_star_B = self._q_star  # the paper's: q* in the body frame
+        if self._frame != "body":
+            q_star_B = R_WB.T @ (reference_rotation(R_WB, self._frame) @ self._q_star)
         u1 = paper_tracking_command(
-            self._x_hat_port.Eval(context),
-            self._attitude_port.Eval(context).reshape(3, 3),
-            self._q_star,
-            self._k_p,
-            self._k_v,
+            self._x_hat_port.Eval(context), R_WB, q_star_B, self._k_p, self._k_v
         )
         if self._max_acceleration is not None:  # |R u1| = |u1|
             u1_norm = float(np.sqrt(u1 @ u1))
