@@ -73,7 +73,9 @@ def chi2_ppf(probability: float, dof: float) -> float:
             low = middle
         else:
             high = middle
-        if high - low <= 1e-12 * max(1.0, high):
+        # Relative to the quantile: a small one (dof 1, low probability) needs its own
+        # digits, not 1e-12 absolute. (Quantiles above 1 stop exactly where they always did.)
+        if high - low <= 1e-12 * high:
             break
     return 0.5 * (low + high)
 
