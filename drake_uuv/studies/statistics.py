@@ -8,6 +8,7 @@ so a study's summary is bit-identical on one core, many, or a cluster. Intervals
 """
 
 import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -151,7 +152,9 @@ def summarize(
         "completed_runs": int(np.sum(~failed)),
         "failed_fraction": float(np.mean(failed)),
     }
-    with np.errstate(all="ignore"):
+    # A study whose runs all failed has empty columns: their statistics are null, not warnings.
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
         for name in ("position", "velocity", "tracking"):
             mse = column[f"{name}_rmse"] ** 2
             summary[f"{name}_rmse"] = _finite(math.sqrt(float(np.mean(mse))))
