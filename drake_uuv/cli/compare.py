@@ -8,8 +8,8 @@ usage error (status 2), and prints the Markdown tables.
 import argparse
 from pathlib import Path
 
-from drake_uuv.cli.montecarlo import EXIT_INTERRUPTED
 from drake_uuv.cli.options import (
+    EXIT_INTERRUPTED,
     UsageError,
     add_execution_options,
     add_scenario_options,

@@ -9,6 +9,7 @@ import argparse
 from pathlib import Path
 
 from drake_uuv.cli.options import (
+    EXIT_INTERRUPTED,
     UsageError,
     add_execution_options,
     add_scenario_options,
@@ -16,8 +17,6 @@ from drake_uuv.cli.options import (
     scenario_from_args,
 )
 from drake_uuv.studies import MonteCarloError, Study, completed_seeds, format_summary, run_study
-
-EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a Ctrl-C
 
 
 def _montecarlo(args: argparse.Namespace) -> int:

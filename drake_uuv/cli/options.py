@@ -8,6 +8,9 @@ from typing import Any, NoReturn
 
 from drake_uuv.scenario import Scenario, load_scenario
 
+# A study stopped by Ctrl-C: 128 + SIGINT, as a shell reports it.
+EXIT_INTERRUPTED = 130
+
 
 class UsageError(ValueError):
     """A bad command-line option (named in the message)."""
