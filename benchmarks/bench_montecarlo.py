@@ -1,9 +1,9 @@
 """Monte Carlo throughput: runs per second of the paper scenario with 1 and 2 workers.
 
-Times :func:`drake_uuv.montecarlo.run_study` end to end (pool start-up, one diagram build per
+Times :func:`drake_uuv.studies.run_study` end to end (pool start-up, one diagram build per
 worker, every run, the per-chunk files on disk, runs.csv and summary.json; not the band
-figure), in a temporary folder. Target (issue 3): 1000 runs of the 500-step paper scenario in
-under 60 s on a 2-core machine.
+figure), in a temporary folder. The project's target: 1000 runs of the 500-step paper scenario
+in under 60 s on a 2-core machine.
 
     python benchmarks/bench_montecarlo.py                 # 1000 runs, 1 and 2 workers
     python benchmarks/bench_montecarlo.py --runs 200 --workers 2
@@ -15,8 +15,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from drake_uuv.montecarlo import Study, default_workers, run_study
 from drake_uuv.scenario import load_scenario
+from drake_uuv.studies import Study, default_workers, run_study
 
 TARGET_RUNS = 1000
 TARGET_SECONDS = 60.0

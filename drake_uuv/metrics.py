@@ -37,7 +37,7 @@ def run_information(log: dict[str, np.ndarray], scenario: Scenario) -> np.ndarra
     """Fisher information ``M(k)`` (N×6×6) of the raw ranges, all f samples, on this run's true
     trajectory; a sonar without a return (``sonar_status`` not VALID) contributes nothing.
 
-    Summed over runs it gives the Monte Carlo PCRLB (:func:`~drake_uuv.estimators.pcrlb.
+    Summed over runs it gives the Monte Carlo PCRLB (:func:`~drake_uuv.models.pcrlb.
     pcrlb_monte_carlo`, see :mod:`drake_uuv.montecarlo`).
     """
     available = log["sonar_status"] == VALID if "sonar_status" in log else None
@@ -55,7 +55,7 @@ def bound_covariances(log: dict[str, np.ndarray], scenario: Scenario) -> dict[st
 
     - ``pcrlb``: the posterior Cramér–Rao bound of the raw two-range measurement (all f
       samples), prior ``P(0|−1)`` = ``estimator.initial_covariance``
-      (:mod:`drake_uuv.estimators.pcrlb`). Per run it is the bound *given this trajectory*;
+      (:mod:`drake_uuv.models.pcrlb`). Per run it is the bound *given this trajectory*;
       the proven Monte Carlo bound averages the information over runs instead.
     - ``kf_riccati``: the paper's KF's Riccati covariance with the noise variance ``Γ`` of its
       ``Y`` (first sample of each sonar, the ``derived`` model) on the true ranges: the MSE of

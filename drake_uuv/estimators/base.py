@@ -14,10 +14,10 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
-from drake_uuv.analysis.stats import chi2_ppf
 from drake_uuv.models.filters import predict
 from drake_uuv.models.measurement import GATED, VALID
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
+from drake_uuv.models.statistics import chi2_ppf
 
 
 @dataclass

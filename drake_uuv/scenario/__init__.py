@@ -41,6 +41,7 @@ from drake_uuv.scenario.schema import (
     TargetConfig,
     UuvConfig,
     describe,
+    scenario_as_dict,
 )
 from drake_uuv.scenario.tracking import (
     ALPHA_PROVEN_INTERVAL,
@@ -86,6 +87,7 @@ __all__ = [
     "load_scenario",
     "parse_yaml",
     "resolve_scenario_path",
+    "scenario_as_dict",
     "scenario_from_dict",
     "validate_scenario",
     "variants",

@@ -15,7 +15,9 @@ own fields in ``validate(name)``.
 """
 
 # No `from __future__ import annotations`: Drake's yaml loader needs the real field types.
+import dataclasses
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -172,6 +174,19 @@ def describe(scenario: "Scenario") -> str:
             type(tracking).__name__ + (f" α = {alpha:g}" if alpha is not None else ""),
         ]
     )
+
+
+def scenario_as_dict(scenario: "Scenario") -> dict[str, Any]:
+    """The scenario as plain data (JSON-ready), each slot with its variant named first:
+    ``{"estimator": {"variant": "Ekf", "noise_model": "derived", …}, …}``.
+
+    ``dataclasses.asdict`` alone loses the variant: ``!Ekf`` and ``!Iekf`` have the same
+    fields, so two scenarios that differ only in a variant would look equal.
+    """
+    data = dataclasses.asdict(scenario)
+    for slot in SLOTS:
+        data[slot] = {"variant": type(getattr(scenario, slot)).__name__, **data[slot]}
+    return data
 
 
 #: The slots: sections whose value is one of several variant dataclasses, chosen by YAML tag.

@@ -39,7 +39,7 @@ def test_ekf_through_the_diagram_is_within_1_1_of_the_pcrlb(ekf_study) -> None:
 
     Against the mean of the per-run bounds (what an estimator efficient on every trajectory
     attains) outright; against the proven Monte Carlo bound, which sits ~8 % lower in this
-    loop (estimators/pcrlb.py), not significantly above 1.1 (Z = 3 standard errors of the
+    loop (models/pcrlb.py), not significantly above 1.1 (Z = 3 standard errors of the
     run-to-run spread). Never significantly below 1: the bound holds.
     """
     s = ekf_study.summary

@@ -1,4 +1,4 @@
-"""The command line: outputs of `drake-uuv run`, and status 2 with one line on bad input."""
+"""`drake-uuv run`: its outputs, and status 2 with one line on bad input."""
 
 import json
 import subprocess
@@ -17,19 +17,27 @@ def test_run_writes_log_metrics_and_figure(tmp_path) -> None:
     )
     assert status == 0
     log = np.load(out / "log.npz")
-    assert log["q_hat"].shape == (120, 3) and log["P"].shape == (120, 6, 6)
+    assert log["x_TU_hat"].shape == (120, 6) and log["P_TU"].shape == (120, 6, 6)
     metrics = json.loads((out / "metrics.json").read_text())
     for key in ("position_rmse", "velocity_rmse", "tracking_rmse", "nees_mean", "steps", "seed",
                 "wall_time_s"):  # fmt: skip
         assert key in metrics
     assert metrics["steps"] == 120 and metrics["seed"] == 0
+    # The metric is the logged run's: q = p_WU − p_WT against q̂, over k ≥ 60.
+    error = (log["p_WU"] - log["p_WT"] - log["x_TU_hat"][:, :3])[60:]
+    rmse = np.sqrt(np.mean(np.sum(error**2, axis=1)))
+    assert metrics["position_rmse"] == pytest.approx(rmse, rel=1e-12)
+    assert (out / "errors.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (out / "errors.png").stat().st_size > 10_000
 
 
-def test_seed_option(tmp_path) -> None:
-    main(["run", "--out", str(tmp_path / "a"), "--seed", "5", "--set", "steps=20",
-          "--set", "steady_state_start=0"])  # fmt: skip
+def test_seed_option(tmp_path, capsys) -> None:
+    status = main(["run", "--out", str(tmp_path / "a"), "--seed", "5", "--set", "steps=20",
+                   "--set", "steady_state_start=0"])  # fmt: skip
+    assert status == 0
     assert json.loads((tmp_path / "a" / "metrics.json").read_text())["seed"] == 5
+    assert np.load(tmp_path / "a" / "log.npz")["x_TU_hat"].shape == (20, 6)
+    assert capsys.readouterr().out.startswith("20 steps in ")
 
 
 @pytest.mark.parametrize(
@@ -45,6 +53,7 @@ def test_seed_option(tmp_path) -> None:
         (["run", "--scenario", "missing.yaml"], "scenario: no such file"),
         (["run", "--seed", "x"], "argument --seed: invalid int value: 'x'"),
         (["run", "--bogus"], "unrecognized arguments: --bogus"),
+        (["run", "--realtime-rate", "-1"], "--realtime-rate: must be ≥ 0, got -1.0"),
         (["launch"], "invalid choice: 'launch'"),
     ],
 )
@@ -54,14 +63,15 @@ def test_bad_input_exits_2_with_one_line(capsys, args: list[str], message: str) 
     assert err.count("\n") == 1 and message in err and "Traceback" not in err
 
 
-def test_console_script_exit_status(tmp_path) -> None:
+def test_python_m_runs_the_command_line_with_its_exit_status(tmp_path) -> None:
     result = subprocess.run(
-        [sys.executable, "-m", "drake_uuv.cli", "run", "--set", "attitude.mode=bad"],
+        [sys.executable, "-m", "drake_uuv.cli", "run", "--set", "attitude=!Bad"],
         capture_output=True,
         text=True,
         cwd=tmp_path,
     )
     assert result.returncode == 2
     assert result.stderr.strip() == (
-        "drake-uuv: error: attitude.mode: must be one of fixed, random, trajectory, got 'bad'"
+        "drake-uuv: error: attitude: unknown variant !Bad (known: !TrajectoryAttitude, "
+        "!RandomAttitude, !FixedAttitude)"
     )

@@ -1,0 +1,75 @@
+"""The ``drake-uuv`` command line.
+
+Every subcommand takes ``--scenario NAME_OR_PATH``, ``--seed S`` and repeated
+``--set dotted.key=value``. Bad input (scenario file, ``--set``, options) exits with status 2
+and one line naming the field and the value, without a traceback.
+
+One module per subcommand (:mod:`~drake_uuv.cli.run`, :mod:`~drake_uuv.cli.diagram`,
+:mod:`~drake_uuv.cli.animate`, :mod:`~drake_uuv.cli.montecarlo`,
+:mod:`~drake_uuv.cli.compare`), each with its parser (``add_subcommand``) and handler; the
+shared options and :class:`UsageError` are in :mod:`~drake_uuv.cli.options`. The command line
+is the top layer: nothing else in the package imports it.
+"""
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+
+from drake_uuv.cli import animate, compare, diagram, montecarlo, run
+from drake_uuv.cli.options import (
+    ArgumentParser,
+    UsageError,
+    add_execution_options,
+    add_scenario_options,
+    execution_options,
+    scenario_from_args,
+)
+from drake_uuv.monitor import SimulationFailure
+from drake_uuv.scenario import ScenarioError
+
+__all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_RUN_FAILED",
+    "SUBCOMMANDS",
+    "UsageError",
+    "add_execution_options",
+    "add_scenario_options",
+    "execution_options",
+    "main",
+    "make_parser",
+    "scenario_from_args",
+]
+
+EXIT_RUN_FAILED = 1
+EXIT_BAD_INPUT = 2
+
+# Each entry adds one subcommand (parser and handler) to the command line.
+SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
+    run.add_subcommand,
+    diagram.add_subcommand,
+    animate.add_subcommand,
+    montecarlo.add_subcommand,
+    compare.add_subcommand,
+]
+
+
+def make_parser() -> argparse.ArgumentParser:
+    """The ``drake-uuv`` parser with every subcommand of :data:`SUBCOMMANDS`."""
+    parser = ArgumentParser(prog="drake-uuv", description=__doc__.splitlines()[0])
+    subparsers = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
+    for add in SUBCOMMANDS:
+        add(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``drake-uuv``; returns the exit status."""
+    try:
+        args = make_parser().parse_args(argv)
+        return args.handler(args)
+    except (ScenarioError, UsageError) as e:
+        print(f"drake-uuv: error: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except SimulationFailure as e:
+        print(f"drake-uuv: {e}", file=sys.stderr)
+        return EXIT_RUN_FAILED

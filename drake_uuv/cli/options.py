@@ -1,0 +1,80 @@
+"""What every subcommand shares: the usage error, the parser class, the common options.
+
+The lowest module of :mod:`drake_uuv.cli`; the subcommand modules import it.
+"""
+
+import argparse
+from typing import Any, NoReturn
+
+from drake_uuv.scenario import Scenario, load_scenario
+
+# A study stopped by Ctrl-C: 128 + SIGINT, as a shell reports it.
+EXIT_INTERRUPTED = 130
+
+
+class UsageError(ValueError):
+    """A bad command-line option (named in the message)."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's own errors as :class:`UsageError`: one line and status 2, no usage dump."""
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(message)
+
+
+def add_scenario_options(parser: argparse.ArgumentParser) -> None:
+    """``--scenario``, ``--seed`` and ``--set``, shared by every subcommand."""
+    parser.add_argument(
+        "--scenario", default="paper", help="shipped scenario name or YAML path (default: paper)"
+    )
+    parser.add_argument("--seed", type=int, default=None, help="override random_seed")
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario field, e.g. --set tracking.alpha=1.0, or switch a slot's "
+        "variant, e.g. --set attitude=!FixedAttitude (repeatable)",
+    )
+
+
+def scenario_from_args(args: argparse.Namespace) -> Scenario:
+    """The validated scenario named by the shared options."""
+    return load_scenario(args.scenario, args.overrides, seed=args.seed)
+
+
+def add_execution_options(parser: argparse.ArgumentParser) -> None:
+    """The options of how a study runs: runs, workers, scheduler, resume, chunk size, progress."""
+    parser.add_argument("--runs", type=int, default=100, help="runs per study (default: 100)")
+    parser.add_argument(
+        "--workers", type=int, default=None, help="local processes (default: every core)"
+    )
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a dask.distributed cluster, e.g. tcp://host:8786",
+    )
+    parser.add_argument(
+        "--resume", action="store_true", help="keep finished runs in --out, compute the rest"
+    )
+    parser.add_argument(
+        "--chunk-size",
+        type=int,
+        default=None,
+        help="seeds per task (default: automatic; smaller loses less on interruption)",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def execution_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The :func:`drake_uuv.studies.run_studies` keywords from :func:`add_execution_options`."""
+    return dict(
+        workers=args.workers,
+        scheduler=args.scheduler,
+        resume=args.resume,
+        chunk_size=args.chunk_size,
+        progress=not args.no_progress,
+    )

@@ -1,0 +1,146 @@
+"""Comparison tables: variants and groups, the Markdown and CSV tables, the written files."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+from study_helpers import SHORT
+
+from drake_uuv.scenario import ALPHA_PROVEN_INTERVAL, Scenario, variants
+from drake_uuv.studies import (
+    ESTIMATOR_GROUP,
+    VARIANT_GROUPS,
+    MonteCarloError,
+    StudyResult,
+    Variant,
+    alpha_sweep_variants,
+    compare,
+    csv_table,
+    markdown_table,
+    ratio_tables,
+    selected_variants,
+)
+from drake_uuv.studies import comparison as comparison_module
+
+
+def _summary(runs: int = 4, **values) -> dict:
+    summary = {"runs": runs, "position_rmse": 0.5, "position_rmse_ci95": [0.4, 0.6]}
+    summary["diverged_fraction"] = 0.25
+    summary["diverged_fraction_ci95"] = [0.05, 0.7]
+    return {**summary, **values}
+
+
+def test_selected_variants_are_the_groups_in_order_and_unknown_groups_are_refused():
+    everything = selected_variants(None)
+    assert everything == [v for make in VARIANT_GROUPS.values() for v in make()]
+    assert selected_variants(["tracking", "alpha"]) == (
+        VARIANT_GROUPS["tracking"]() + VARIANT_GROUPS["alpha"]()
+    )
+    with pytest.raises(MonteCarloError, match=r"^--group: unknown group 'bogus' \(known: "):
+        selected_variants(["alpha", "bogus"])
+
+
+def test_variant_names_are_unique_and_alphas_are_labelled_by_the_proven_interval():
+    names = [variant.name for variant in selected_variants(None)]
+    assert len(names) == len(set(names))
+    low, high = ALPHA_PROVEN_INTERVAL
+    for variant in alpha_sweep_variants([0.29, 0.3, 1.7, 1.71]):
+        alpha = float(variant.name.removeprefix("alpha-"))
+        assert variant.note == ("proven" if low < alpha < high else "unproven")
+    estimator = VARIANT_GROUPS["estimator"]()
+    # Every estimator variant the scenario knows, under each of the paper's three attitudes.
+    assert len(estimator) == len(variants(Scenario, "estimator")) * 3
+    assert {v.overrides[0] for v in estimator} == {
+        f"estimator=!{tag}" for tag in variants(Scenario, "estimator")
+    }
+
+
+def test_markdown_table_one_table_per_group_with_notes_only_where_given():
+    rows = [
+        (Variant("a", "first", ("x=1",)), _summary()),
+        (Variant("b", "second", ("x=2",), note="proven"), _summary(runs=3, position_rmse=None)),
+    ]
+    text = markdown_table(rows)
+    assert text.count("### ") == 2
+    first, second = text.split("### second")
+    assert "| variant | runs | position RMSE [m] |" in first
+    # Absent numbers are dashes; fractions are percentages, without intervals.
+    assert "| a | 4 | 0.5 [0.4, 0.6] | — | — | — | 25% | — |" in first
+    assert "| variant | note | runs |" in second
+    assert "| b | proven | 3 | — [0.4, 0.6] |" in second
+
+
+def test_csv_table_has_intervals_and_bounds_and_blank_for_missing():
+    rows = [(Variant("a", "g", ("x=1", "y=2"), note="n"), _summary(pcrlb_position_rmse=0.1))]
+    header, row = csv.DictReader(csv_table(rows).splitlines()), None
+    row = next(header)
+    assert row["group"] == "g" and row["overrides"] == "x=1 y=2" and row["note"] == "n"
+    assert row["position_rmse"] == "0.5" and row["position_rmse_ci95_high"] == "0.6"
+    assert row["diverged_fraction_ci95_low"] == "0.05"
+    assert row["velocity_rmse"] == "" and row["pcrlb_position_rmse"] == "0.1"
+
+
+def test_ratio_tables_place_each_estimator_and_mode():
+    rows = [
+        (
+            Variant("kf-fixed", ESTIMATOR_GROUP, ("estimator=!PaperKf", "attitude=!FixedAttitude")),
+            _summary(position_rmse_over_pcrlb=2.0, velocity_rmse_over_pcrlb=1.5),
+        ),
+        (
+            Variant("ekf-random", ESTIMATOR_GROUP, ("estimator=!Ekf", "attitude=!RandomAttitude")),
+            _summary(position_rmse_over_per_run_pcrlb=1.02),
+        ),
+    ]
+    text = ratio_tables(rows)
+    assert "| estimator | fixed | random |" in text
+    assert "| kf | 2 / 1.5 | — / — |" in text
+    assert "| ekf | — / — | 1.02 / — |" in text
+    assert ratio_tables([(Variant("a", "other", ()), _summary())]) == ""
+
+
+def test_compare_writes_both_files_and_states_its_command(tmp_path, monkeypatch):
+    calls = []
+
+    def fake_run_studies(studies, **options):
+        calls.append(options)
+        return [
+            StudyResult(s, np.arange(s.runs), [], np.empty((s.runs, 0)), None, _summary(), s.runs)
+            for s in studies
+        ]
+
+    monkeypatch.setattr(comparison_module, "run_studies", fake_run_studies)
+    variants = VARIANT_GROUPS["tracking"]()
+    result = compare(variants, tmp_path, runs=4, base_overrides=SHORT, workers=2)
+    assert calls == [{"workers": 2, "figures": False}]
+    assert [variant for variant, _ in result] == variants
+    assert result[0][1].study.out_dir == tmp_path / "studies" / variants[0].name
+    assert result[0][1].study.scenario.steps == 80
+    markdown = (tmp_path / "compare.md").read_text()
+    assert markdown.startswith("# Comparison (paper scenario, 4 runs per variant)\n\n")
+    command = "drake-uuv compare --runs 4 --set steps=80 --set steady_state_start=40"
+    assert f"Made by `{command} --group tracking`." in markdown
+    assert "Cramér–Rao" not in markdown  # no estimator group: no ratio tables
+    assert (tmp_path / "compare.csv").read_text().count("\n") == 1 + len(variants)
+
+
+@pytest.mark.slow
+def test_compare_runs_each_variant_and_tabulates_its_summary(tmp_path):
+    variants = [
+        Variant("fixed", "attitude", ("attitude=!FixedAttitude",)),
+        Variant("trajectory", "attitude", ("attitude=!TrajectoryAttitude",), note="paper"),
+    ]
+    compare(variants, tmp_path, runs=2, base_overrides=SHORT, workers=1, progress=False)
+    markdown = (tmp_path / "compare.md").read_text()
+    assert "| fixed |" in markdown and "| trajectory | paper |" in markdown
+    rows = list(csv.DictReader((tmp_path / "compare.csv").read_text().splitlines()))
+    assert [row["variant"] for row in rows] == ["fixed", "trajectory"]
+    for row, variant in zip(rows, variants, strict=True):
+        folder = tmp_path / "studies" / variant.name
+        summary = json.loads((folder / "summary.json").read_text())
+        assert row["group"] == "attitude" and int(row["runs"]) == summary["runs"] == 2
+        assert float(row["position_rmse"]) == summary["position_rmse"]
+        assert float(row["nees_mean_ci95_low"]) == summary["nees_mean_ci95"][0]
+        assert not (folder / "figures").exists()  # compare draws no band figures
+    fixed = json.loads((tmp_path / "studies" / "fixed" / "study.json").read_text())
+    assert fixed["scenario"]["attitude"] == {"variant": "FixedAttitude"}
