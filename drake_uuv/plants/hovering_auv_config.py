@@ -165,13 +165,17 @@ class HoveringAuv:
     # passes through the outer loop's R(k+1) at τ = (k+1)t; "step": regulate to R(k+1) from kt.
     attitude_reference: str = "trajectory"
     # --- Integration ---------------------------------------------------------------------------
-    # Target accuracy of Drake's error-controlled RK3 (see hovering_auv.simulator_config).
+    # Target accuracy of Drake's error-controlled RK5 (see hovering_auv.configure_simulator).
     integrator_accuracy: float = 1e-6
 
     @property
     def buoyant_force(self) -> float:
         """B [N]: ``buoyancy``, or the weight when the vehicle is neutrally buoyant."""
         return self.mass * self.gravity if self.buoyancy is None else self.buoyancy
+
+    def controller_period(self, outer_period: float) -> float:
+        """The fast period h: ``t / round(t · controller_rate)``, the nearest that divides t."""
+        return outer_period / max(1, round(outer_period * self.controller_rate))
 
     def vehicle_model(self) -> MarineVehicleModel:
         """Fossen's model of this vehicle (see ``drake_uuv/models/marine_vehicle.py``)."""

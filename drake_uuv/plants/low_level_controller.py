@@ -88,8 +88,8 @@ class LowLevelController(LeafSystem):
         if not (math.isfinite(outer_period) and outer_period > 0.0):
             raise ValueError(f"outer_period: must be > 0, got {outer_period!r}")
         self._t = float(outer_period)
-        self._ratio = max(1, round(self._t * config.controller_rate))
-        self._h = self._t / self._ratio
+        self._h = config.controller_period(self._t)
+        self._ratio = round(self._t / self._h)
         self._model = config.vehicle_model()
         self._allocator = config.allocator()
         n = self._allocator.num_thrusters

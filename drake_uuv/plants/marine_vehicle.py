@@ -28,7 +28,7 @@ class MarineVehicle(LeafSystem):
     the unit sphere by the stabilising term of ``quaternion_derivative``, and every output
     normalises it before use.
 
-    Integrate with an explicit error-controlled scheme (``simulator_config`` in
+    Integrate with an explicit scheme (``configure_simulator`` in
     ``drake_uuv/plants/hovering_auv.py``): the dynamics are not stiff (the fastest damping
     rate, ``2 D_quad |ν| / M`` in roll at 3 rad/s, is about 16 s⁻¹).
 
@@ -133,7 +133,7 @@ class MarineVehicle(LeafSystem):
         R = rotation_rows(x[3:7])
         command = self._thrust_port.Eval(context)
         f_max = self._max_thrust
-        if max(command.max(), -command.min()) > f_max:
+        if abs(command).max() > f_max:
             command = np.clip(command, -f_max, f_max)
         if self._lag:
             thrust = np.array(x[13:])
@@ -141,8 +141,7 @@ class MarineVehicle(LeafSystem):
         else:
             thrust, thrust_dot = command, []
         bias = self._model._bias(x[7:13], (self._M @ state[_NU]).tolist(), R[2])
-        tau = (self._A @ thrust).tolist()
-        nu_dot = self._M_inv @ np.array([t - b for t, b in zip(tau, bias, strict=True)])
+        nu_dot = self._M_inv @ (self._A @ thrust - bias)
         # q̇ = ½ q ⊗ [0, ω_B] + λ (1 − |q|²) q (see quaternion_derivative).
         k = QUATERNION_NORM_GAIN * (1.0 - (qw * qw + qx * qx + qy * qy + qz * qz))
         derivatives.get_mutable_vector().SetFromVector(
