@@ -74,12 +74,14 @@ def test_an_outer_tick_uses_the_fresh_command_and_other_ticks_the_latch() -> Non
         assert_allclose(
             discrete_update(controller, context, TARGET).reshape(3, 3), exp_so3(u2 * T) @ R
         )
-        # At rest, the wrench is M ν̇_des: the body acceleration Rᵀ a_W, and the rate step
-        # 2ζω (u2 − 0) as angular acceleration (the attitude error is 0 at s = 0).
+        # At rest, ν̇_des is the body acceleration Rᵀ a_W and the rate step 2ζω (u2 − 0) as
+        # angular acceleration (the attitude error is 0 at s = 0); the wrench adds the bias
+        # C ν + D ν + g at the mid-period velocity ½ h ν̇_des.
         nu_dot = np.concatenate([u1, R.T @ (16.0 * u2)])
-        assert_allclose(discrete_update(controller, context, WRENCH), model.M @ nu_dot, atol=1e-12)
+        expected = model.M @ nu_dot + model.bias_force(0.01 * nu_dot, R)
+        assert_allclose(discrete_update(controller, context, WRENCH), expected, atol=1e-12)
         thrust = discrete_update(controller, context, THRUST)
-        assert_allclose(config.allocator().A @ thrust, model.M @ nu_dot, atol=1e-11)
+        assert_allclose(config.allocator().A @ thrust, expected, atol=1e-11)
     # Between outer ticks the inputs are ignored: the default latch (no acceleration, rate 0,
     # R(kt) = R) holds the vehicle at rest, whatever the outer loop's ports now say.
     context = controller_context(controller, 0.02, np.zeros(6), R)
@@ -106,7 +108,13 @@ def test_one_update_is_the_computed_torque_law() -> None:
     alpha_W = 64.0 * e + 16.0 * (u2 - R @ nu[3:])
     a_cmd = a_W + 4.0 * (v_k + a_W * s - R @ nu[:3])
     nu_dot = np.concatenate([R.T @ a_cmd - np.cross(nu[3:], nu[:3]), R.T @ alpha_W])
-    expected = model.M @ nu_dot + model.coriolis_matrix(nu) @ nu + model.damping_force(nu) + model.restoring_force(R)
+    nu_mid = nu + 0.01 * nu_dot  # half a 50 Hz period ahead
+    expected = (
+        model.M @ nu_dot
+        + model.coriolis_matrix(nu_mid) @ nu_mid
+        + model.damping_force(nu_mid)
+        + model.restoring_force(R)
+    )
     assert_allclose(discrete_update(controller, context, WRENCH), expected, rtol=1e-12, atol=1e-12)
     assert_allclose(discrete_update(controller, context, VELOCITY), v_k + a_W * s)
     assert_allclose(discrete_update(controller, context, SCALE), [1.0, 1.0])
