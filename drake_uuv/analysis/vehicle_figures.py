@@ -44,15 +44,18 @@ def attitude_errors(log: dict[str, np.ndarray]) -> np.ndarray:
 def plot_attitude_tracking(log: dict[str, np.ndarray], path: Path) -> Path:
     """Commanded against achieved attitude and angular rate.
 
-    Needs ``time``, ``R_WB``, ``R_WB_command``, ``w_WB`` and ``w_WB_command``. Top: roll,
-    pitch and yaw of both (yaw unwrapped). Middle: the attitude error angle. Bottom: the
-    world angular velocity, commanded (``u2``, steps) and achieved.
+    Needs ``time``, ``R_WB``, ``R_WB_command``, ``w_WB`` and ``w_WB_command``, logged at the
+    outer period t: row k then holds the attitude reached at kt and the target ``R(k)`` set
+    at step k − 1, and the rate ``u2`` that was in force over the step before. Top: roll,
+    pitch and yaw of both (roll and yaw unwrapped). Middle: the attitude error angle at each
+    tick. Bottom: the world angular velocity, commanded (steps) and achieved.
     """
     time = np.asarray(log["time"])
     achieved = roll_pitch_yaw(log["R_WB"])
     commanded = roll_pitch_yaw(log["R_WB_command"])
-    achieved[:, 2] = np.unwrap(achieved[:, 2])
-    commanded[:, 2] = np.unwrap(commanded[:, 2])
+    for i in (0, 2):  # roll and yaw wrap at ±π; pitch stays in [−π/2, π/2]
+        achieved[:, i] = np.unwrap(achieved[:, i])
+        commanded[:, i] = np.unwrap(commanded[:, i])
     error = attitude_errors(log)
     figure, axes = plt.subplots(3, 1, sharex=True, figsize=(9, 7.5), constrained_layout=True)
     colors = ("tab:red", "tab:green", "tab:blue")
@@ -61,13 +64,14 @@ def plot_attitude_tracking(log: dict[str, np.ndarray], path: Path) -> Path:
         axes[0].plot(time, achieved[:, i], color=color, lw=0.8, label=name)
     axes[0].set_ylabel("attitude [rad]")
     axes[0].legend(ncol=3, fontsize=7, loc="upper left")
-    axes[1].semilogy(time, np.maximum(error, 1e-12), color="black", lw=0.8)
+    # Row 0 compares the initial attitude with itself: start at row 1.
+    axes[1].semilogy(time[1:], np.maximum(error[1:], 1e-9), color="black", lw=0.8)
     axes[1].set_ylabel("|Log(R_cmd R_WBᵀ)| [rad]")
     rates = np.asarray(log["w_WB"])
     commanded_rates = np.asarray(log["w_WB_command"])
     for i, color in enumerate(colors):
         axes[2].step(
-            time, commanded_rates[:, i], where="post", color=color, lw=1.6, alpha=0.45,
+            time, commanded_rates[:, i], where="pre", color=color, lw=1.6, alpha=0.45,
             label=f"ω{_AXES[i]} cmd",
         )
         axes[2].plot(time, rates[:, i], color=color, lw=0.8, label=f"ω{_AXES[i]}")
@@ -77,7 +81,9 @@ def plot_attitude_tracking(log: dict[str, np.ndarray], path: Path) -> Path:
     for axis in axes:
         axis.grid(True, which="both", alpha=0.3)
     figure.suptitle(
-        f"attitude error mean {error.mean():.3g} rad, peak {error.max():.3g} rad", fontsize=9
+        f"attitude error at the outer ticks: mean {error[1:].mean():.3g} rad, peak "
+        f"{error[1:].max():.3g} rad",
+        fontsize=9,
     )
     save_figure_atomic(figure, path, dpi=120)
     plt.close(figure)
@@ -100,8 +106,8 @@ def plot_thrusts(log: dict[str, np.ndarray], max_thrust: float, path: Path) -> P
         axis.set_ylim(-1.15 * max_thrust, 1.15 * max_thrust)
         axis.set_ylabel(f"f{i} [N]", fontsize=8)
         axis.text(
-            1.0, 1.0, f"{100 * at_limit[:, i].mean():.1f} % at limit", transform=axis.transAxes,
-            ha="right", va="top", fontsize=7,
+            0.995, 0.03, f"{100 * at_limit[:, i].mean():.1f} % at limit",
+            transform=axis.transAxes, ha="right", va="bottom", fontsize=7,
         )
         axis.grid(True, alpha=0.3)
     np.atleast_1d(axes)[-1].set_xlabel("time [s]")

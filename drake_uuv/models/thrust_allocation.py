@@ -96,6 +96,17 @@ class ThrustAllocator:
     def num_thrusters(self) -> int:
         return self.A.shape[1]
 
+    def utilisation(self, wrench: np.ndarray) -> np.ndarray:
+        """``max_i |A⁺_W τ|_i / f_max`` per wrench (rows of an m×6 array, or one 6-vector).
+
+        At most 1 exactly when the allocation delivers the wrench unscaled. For the default
+        layout and equal weights this is ``(|F_x| + |F_y| + |M_z|/0.32 m) / (2√2 f_max)`` for
+        the angled group and ``(|F_z| + |M_x|/0.22 m + |M_y|/0.25 m) / (4 f_max)`` for the
+        vertical group, whichever is larger.
+        """
+        thrust = np.asarray(wrench, dtype=float) @ self.A_pinv.T
+        return np.abs(thrust).max(axis=-1) / self.max_thrust
+
     def wrench(self, thrust: np.ndarray) -> np.ndarray:
         """The body wrench ``A f`` of a thrust vector."""
         return self.A @ thrust
