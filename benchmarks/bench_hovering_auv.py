@@ -56,9 +56,7 @@ class BoundedAcceleration(LeafSystem):
         output.set_value(R.T @ self.world_acceleration(context.get_time()))
 
 
-def build(
-    config: HoveringAuv, max_angular_rate: float | None, acceleration: float, speed: float
-):
+def build(config: HoveringAuv, max_angular_rate: float | None, acceleration: float, speed: float):
     """The plant, Algorithm 2 and the acceleration pattern, with loggers; returns the pieces."""
     builder = DiagramBuilder()
     plant = builder.AddNamedSystem(
@@ -66,9 +64,7 @@ def build(
     )
     attitude = builder.AddNamedSystem(
         "attitude_generator",
-        AttitudeGenerator(
-            "trajectory", OUTER_PERIOD, BASELINE, max_angular_rate=max_angular_rate
-        ),
+        AttitudeGenerator("trajectory", OUTER_PERIOD, BASELINE, max_angular_rate=max_angular_rate),
     )
     accel = builder.AddNamedSystem("acceleration", BoundedAcceleration(acceleration, speed))
     builder.Connect(plant.GetOutputPort("R_WB"), attitude.GetInputPort("R_WB"))
@@ -117,26 +113,32 @@ def run(
     w = fast_log["w_WB"]
     v = fast_log["v_WU"]
     integrator = simulator.get_integrator()
-    return {
-        "wall_s": wall,
-        "cpu_s": cpu,
-        "build_s": built - start,
-        "attitude_error_mean_rad": float(np.mean(errors)),
-        "attitude_error_peak_rad": float(np.max(errors)),
-        "scaled_fraction": float(np.mean(np.any(scale < 1.0 - 1e-12, axis=1))),
-        "at_limit_fraction": float(
-            np.mean(np.any(np.abs(fast_log["thrust"]) >= config.max_thrust * (1 - 1e-9), axis=1))
-        ),
-        "peak_rate_cmd_rad_s": float(np.max(np.linalg.norm(log["w_WB_command"], axis=1))),
-        "peak_rate_rad_s": float(np.max(np.linalg.norm(w, axis=1))),
-        "peak_angular_acceleration_rad_s2": float(
-            np.max(np.linalg.norm(np.diff(w, axis=0), axis=1)) / h
-        ),
-        "peak_acceleration_m_s2": float(np.max(np.linalg.norm(np.diff(v, axis=0), axis=1)) / h),
-        "peak_speed_m_s": float(np.max(np.linalg.norm(v, axis=1))),
-        "derivative_evaluations": integrator.get_num_derivative_evaluations(),
-        "integrator_steps": integrator.get_num_steps_taken(),
-    }, log, fast_log
+    return (
+        {
+            "wall_s": wall,
+            "cpu_s": cpu,
+            "build_s": built - start,
+            "attitude_error_mean_rad": float(np.mean(errors)),
+            "attitude_error_peak_rad": float(np.max(errors)),
+            "scaled_fraction": float(np.mean(np.any(scale < 1.0 - 1e-12, axis=1))),
+            "at_limit_fraction": float(
+                np.mean(
+                    np.any(np.abs(fast_log["thrust"]) >= config.max_thrust * (1 - 1e-9), axis=1)
+                )
+            ),
+            "peak_rate_cmd_rad_s": float(np.max(np.linalg.norm(log["w_WB_command"], axis=1))),
+            "peak_rate_rad_s": float(np.max(np.linalg.norm(w, axis=1))),
+            "peak_angular_acceleration_rad_s2": float(
+                np.max(np.linalg.norm(np.diff(w, axis=0), axis=1)) / h
+            ),
+            "peak_acceleration_m_s2": float(np.max(np.linalg.norm(np.diff(v, axis=0), axis=1)) / h),
+            "peak_speed_m_s": float(np.max(np.linalg.norm(v, axis=1))),
+            "derivative_evaluations": integrator.get_num_derivative_evaluations(),
+            "integrator_steps": integrator.get_num_steps_taken(),
+        },
+        log,
+        fast_log,
+    )
 
 
 def main() -> None:
@@ -171,7 +173,9 @@ def main() -> None:
                     f"{f['cpu_s']:5.1f}"
                 )
         return
-    figures, log, fast_log = run(config, args.steps, args.max_angular_rate, args.acceleration, args.speed)
+    figures, log, fast_log = run(
+        config, args.steps, args.max_angular_rate, args.acceleration, args.speed
+    )
     print(
         f"{args.steps} outer steps ({args.steps * OUTER_PERIOD:g} s), controller "
         f"{config.controller_rate:g} Hz, RK5 accuracy {config.integrator_accuracy:g}, "

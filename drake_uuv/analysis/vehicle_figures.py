@@ -71,7 +71,12 @@ def plot_attitude_tracking(log: dict[str, np.ndarray], path: Path) -> Path:
     commanded_rates = np.asarray(log["w_WB_command"])
     for i, color in enumerate(colors):
         axes[2].step(
-            time, commanded_rates[:, i], where="pre", color=color, lw=1.6, alpha=0.45,
+            time,
+            commanded_rates[:, i],
+            where="pre",
+            color=color,
+            lw=1.6,
+            alpha=0.45,
             label=f"ω{_AXES[i]} cmd",
         )
         axes[2].plot(time, rates[:, i], color=color, lw=0.8, label=f"ω{_AXES[i]}")
@@ -106,8 +111,13 @@ def plot_thrusts(log: dict[str, np.ndarray], max_thrust: float, path: Path) -> P
         axis.set_ylim(-1.15 * max_thrust, 1.15 * max_thrust)
         axis.set_ylabel(f"f{i} [N]", fontsize=8)
         axis.text(
-            0.995, 0.03, f"{100 * at_limit[:, i].mean():.1f} % at limit",
-            transform=axis.transAxes, ha="right", va="bottom", fontsize=7,
+            0.995,
+            0.03,
+            f"{100 * at_limit[:, i].mean():.1f} % at limit",
+            transform=axis.transAxes,
+            ha="right",
+            va="bottom",
+            fontsize=7,
         )
         axis.grid(True, alpha=0.3)
     np.atleast_1d(axes)[-1].set_xlabel("time [s]")

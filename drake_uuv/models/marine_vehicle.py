@@ -252,12 +252,27 @@ class MarineVehicleModel:
             wy * p2 - wz * p1 + (dl[0] + dq[0] * abs(u)) * u + f * k[0],
             wz * p0 - wx * p2 + (dl[1] + dq[1] * abs(v)) * v + f * k[1],
             wx * p1 - wy * p0 + (dl[2] + dq[2] * abs(w)) * w + f * k[2],
-            wy * p5 - wz * p4 + v * p2 - w * p1 + (dl[3] + dq[3] * abs(wx)) * wx
-            + a[1] * k[2] - a[2] * k[1],
-            wz * p3 - wx * p5 + w * p0 - u * p2 + (dl[4] + dq[4] * abs(wy)) * wy
-            + a[2] * k[0] - a[0] * k[2],
-            wx * p4 - wy * p3 + u * p1 - v * p0 + (dl[5] + dq[5] * abs(wz)) * wz
-            + a[0] * k[1] - a[1] * k[0],
+            wy * p5
+            - wz * p4
+            + v * p2
+            - w * p1
+            + (dl[3] + dq[3] * abs(wx)) * wx
+            + a[1] * k[2]
+            - a[2] * k[1],
+            wz * p3
+            - wx * p5
+            + w * p0
+            - u * p2
+            + (dl[4] + dq[4] * abs(wy)) * wy
+            + a[2] * k[0]
+            - a[0] * k[2],
+            wx * p4
+            - wy * p3
+            + u * p1
+            - v * p0
+            + (dl[5] + dq[5] * abs(wz)) * wz
+            + a[0] * k[1]
+            - a[1] * k[0],
         ]
 
     def acceleration(self, nu: np.ndarray, R_WB: np.ndarray, tau: np.ndarray) -> np.ndarray:

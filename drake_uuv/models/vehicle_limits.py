@@ -135,7 +135,9 @@ def utilisation_budget(
     loads = {
         "acceleration": acceleration * _per_thruster(allocator, np.hstack([d, zeros]) @ model.M.T),
         "speed": _per_thruster(allocator, _drag(model, np.hstack([speed * d, zeros]))),
-        "angular_rate": _per_thruster(allocator, _drag(model, np.hstack([zeros, angular_rate * d]))),
+        "angular_rate": _per_thruster(
+            allocator, _drag(model, np.hstack([zeros, angular_rate * d]))
+        ),
     }
     pair = sphere_directions(max(n // 4, 2))
     v, w = np.repeat(speed * pair, len(pair), 0), np.tile(angular_rate * pair, (len(pair), 1))

@@ -56,7 +56,7 @@ _S = HOVERING_AUV_MASS / BLUEROV2_MASS  # mass ratio; lengths scale by _S ** (1/
 
 
 def _scaled(values: tuple[float, ...], force_power: float, moment_power: float) -> list[float]:
-    """Surge/sway/heave entries times ``_S**force_power``, roll/pitch/yaw times ``_S**moment_power``."""
+    """Force entries times ``_S**force_power``, moment entries times ``_S**moment_power``."""
     return [v * _S**force_power for v in values[:3]] + [v * _S**moment_power for v in values[3:]]
 
 
@@ -202,7 +202,10 @@ class HoveringAuv:
         )
 
     def validate(self, prefix: str) -> None:
-        """Raises ``ScenarioError("{prefix}.field: requirement, got value")`` on the first bad field."""
+        """Raises ``ScenarioError(f"{prefix}.field: requirement, got {value!r}")`` on a bad field.
+
+        Fields are checked in declaration order and the first bad one is reported.
+        """
         # Imported here: the scenario module will import this one to hold it as a variant.
         from drake_uuv.scenario import ScenarioError
 

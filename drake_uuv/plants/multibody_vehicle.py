@@ -114,8 +114,14 @@ class MultibodyVehicle(Diagram):
             SpatialInertia.MakeFromCentralInertia(
                 config.mass,
                 np.asarray(config.center_of_gravity, dtype=float),
-                RotationalInertia(inertia[0, 0], inertia[1, 1], inertia[2, 2],
-                                  inertia[0, 1], inertia[0, 2], inertia[1, 2]),
+                RotationalInertia(
+                    inertia[0, 0],
+                    inertia[1, 1],
+                    inertia[2, 2],
+                    inertia[0, 1],
+                    inertia[0, 2],
+                    inertia[1, 2],
+                ),
             ),
         )
         plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -config.gravity])
@@ -132,7 +138,8 @@ class MultibodyVehicle(Diagram):
         propellers = builder.AddNamedSystem("propellers", Propeller(infos))
         n = len(infos)
         saturation = builder.AddNamedSystem(
-            "saturation", Saturation(-config.max_thrust * np.ones(n), config.max_thrust * np.ones(n))
+            "saturation",
+            Saturation(-config.max_thrust * np.ones(n), config.max_thrust * np.ones(n)),
         )
         if config.thrust_time_constant > 0.0:
             lag = builder.AddNamedSystem(

@@ -38,7 +38,9 @@ def random_model(rng: np.random.Generator, added: bool = True) -> MarineVehicleM
     )
 
 
-def test_default_mass_matrix_is_positive_definite_and_the_wrong_added_mass_sign_is_rejected() -> None:
+def test_default_mass_matrix_is_positive_definite_and_the_wrong_added_mass_sign_is_rejected() -> (
+    None
+):
     config = HoveringAuv()
     M = config.vehicle_model().M
     assert_allclose(M, M.T)
@@ -100,9 +102,7 @@ def test_rigid_body_coriolis_equals_fossens_angular_velocity_parametrisation() -
     for _ in range(20):
         nu = rng.normal(size=6)
         w = nu[3:]
-        C = np.block(
-            [[m * hat(w), -m * hat(w) @ hat(r_g)], [m * hat(r_g) @ hat(w), -hat(I_b @ w)]]
-        )
+        C = np.block([[m * hat(w), -m * hat(w) @ hat(r_g)], [m * hat(r_g) @ hat(w), -hat(I_b @ w)]])
         assert_allclose(coriolis_matrix(model.M_RB, nu) @ nu, C @ nu, atol=1e-12)
 
 
@@ -169,9 +169,7 @@ def test_float_bias_force_equals_the_sum_of_its_terms() -> None:
         nu = rng.normal(size=6)
         R = RotationMatrix(RollPitchYaw(rng.uniform(-3, 3, 3))).matrix()
         expected = (
-            model.coriolis_matrix(nu) @ nu
-            + model.damping_force(nu)
-            + model.restoring_force(R)
+            model.coriolis_matrix(nu) @ nu + model.damping_force(nu) + model.restoring_force(R)
         )
         assert_allclose(model.bias_force(nu, R), expected, atol=1e-10)
         tau = rng.normal(size=6)
@@ -210,7 +208,9 @@ def test_quaternion_derivative_is_the_attitude_kinematics() -> None:
         R = RotationMatrix(RollPitchYaw(rng.uniform(-3, 3, 3))).matrix()
         q, w_B = quaternion_from_matrix(R), rng.normal(size=3)
         q_dot, eps = quaternion_derivative(q, w_B), 1e-6
-        R_dot = (rotation_from_quaternion(q + eps * q_dot) - rotation_from_quaternion(q - eps * q_dot)) / (2 * eps)
+        R_dot = (
+            rotation_from_quaternion(q + eps * q_dot) - rotation_from_quaternion(q - eps * q_dot)
+        ) / (2 * eps)
         assert_allclose(R_dot, R @ hat(w_B), atol=1e-8)
 
 

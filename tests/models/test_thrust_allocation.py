@@ -52,7 +52,9 @@ def test_a_layout_without_sway_authority_is_rejected() -> None:
     directions = [d[:] for d in config.thruster_directions]
     for i in range(4, 8):  # all four angled thrusters parallel: surge and sway dependent
         directions[i] = [math.sqrt(0.5), math.sqrt(0.5), 0.0]
-    with pytest.raises(ValueError, match=r"^positions, directions: the allocation matrix has rank 5 < 6"):
+    with pytest.raises(
+        ValueError, match=r"^positions, directions: the allocation matrix has rank 5 < 6"
+    ):
         ThrustAllocator(config.thruster_positions, directions, 77.55)
 
 
@@ -111,7 +113,10 @@ def test_an_infeasible_moment_is_scaled_and_the_force_dropped(allocator: ThrustA
         (dict(max_thrust=0.0), r"^max_thrust: must be > 0, got 0\.0$"),
         (dict(max_thrust=float("nan")), r"^max_thrust: must be > 0, got nan$"),
         (dict(weights=np.ones(7)), r"^weights: must be 8 positive numbers, got \[1\.0, "),
-        (dict(weights=np.array([1, 1, 1, 1, 1, 1, 1, -1.0])), r"^weights: must be 8 positive numbers"),
+        (
+            dict(weights=np.array([1, 1, 1, 1, 1, 1, 1, -1.0])),
+            r"^weights: must be 8 positive numbers",
+        ),
     ],
 )
 def test_bad_allocator_arguments_name_the_parameter(kwargs: dict, message: str) -> None:
@@ -126,9 +131,13 @@ def test_bad_allocator_arguments_name_the_parameter(kwargs: dict, message: str) 
 
 
 def test_bad_geometry_names_the_parameter() -> None:
-    with pytest.raises(ValueError, match=r"^positions: must be n×3 and finite, got \[1\.0, 2\.0\]$"):
+    with pytest.raises(
+        ValueError, match=r"^positions: must be n×3 and finite, got \[1\.0, 2\.0\]$"
+    ):
         allocation_matrix([1.0, 2.0], [[0, 0, 1]])
-    with pytest.raises(ValueError, match=r"^directions: must be non-zero, got \[\[0\.0, 0\.0, 0\.0\]\]$"):
+    with pytest.raises(
+        ValueError, match=r"^directions: must be non-zero, got \[\[0\.0, 0\.0, 0\.0\]\]$"
+    ):
         allocation_matrix([[0, 0, 0]], [[0, 0, 0]])
     with pytest.raises(ValueError, match=r"^directions: must be 1×3 and finite"):
         allocation_matrix([[0, 0, 0]], [[0, 0, 1], [0, 1, 0]])

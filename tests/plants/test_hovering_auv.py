@@ -105,7 +105,10 @@ def test_thrusters_reproduce_the_papers_step() -> None:
 def test_figures_are_written(tmp_path) -> None:
     log = simulate(make_plant(), np.array([0.3, 0.0, 0.0]), np.array([0.0, 0.3, 0.6]), 12)
     assert plot_attitude_tracking(log, tmp_path / "attitude.png").stat().st_size > 10_000
-    assert plot_thrusts(log, HoveringAuv().max_thrust, tmp_path / "thrusts.png").stat().st_size > 10_000
+    assert (
+        plot_thrusts(log, HoveringAuv().max_thrust, tmp_path / "thrusts.png").stat().st_size
+        > 10_000
+    )
 
 
 def test_roll_pitch_yaw_matches_drake() -> None:
@@ -120,10 +123,20 @@ def test_roll_pitch_yaw_matches_drake() -> None:
     [
         (dict(time_step=-0.5), ValueError, r"^time_step: must be > 0, got -0\.5$"),
         (dict(initial_rpy=np.zeros(2)), ValueError, r"^initial_rpy: must be 3 finite numbers"),
-        (dict(initial_position=np.array([0, 0, np.inf])), ValueError, r"^initial_position: must be 3 finite numbers"),
-        (dict(config=dataclasses.replace(HoveringAuv(), mass=-1.0)), ScenarioError, r"^config\.mass: must be > 0, got -1\.0$"),
+        (
+            dict(initial_position=np.array([0, 0, np.inf])),
+            ValueError,
+            r"^initial_position: must be 3 finite numbers",
+        ),
+        (
+            dict(config=dataclasses.replace(HoveringAuv(), mass=-1.0)),
+            ScenarioError,
+            r"^config\.mass: must be > 0, got -1\.0$",
+        ),
     ],
 )
-def test_bad_constructor_arguments_name_the_parameter(kwargs: dict, error: type, message: str) -> None:
+def test_bad_constructor_arguments_name_the_parameter(
+    kwargs: dict, error: type, message: str
+) -> None:
     with pytest.raises(error, match=message):
         make_plant(**kwargs)

@@ -163,7 +163,9 @@ def sampled_step(zeta: float, omega: float, h: float, steps: int) -> np.ndarray:
 
 
 @pytest.mark.parametrize("zeta, axis", [(1.0, [0, 0, 1]), (0.6, [0, 0, 1]), (0.6, [1, 0, 0])])
-def test_attitude_step_response_has_the_designed_rise_time_and_overshoot(zeta: float, axis: list) -> None:
+def test_attitude_step_response_has_the_designed_rise_time_and_overshoot(
+    zeta: float, axis: list
+) -> None:
     # "step" reference: from kt the controller regulates to R(k+1) = Exp(u2 t) R(kt). With an
     # outer period of 2 s the response to a 0.3 rad step is seen whole. The design says the
     # attitude error obeys ë + 2ζω ė + ω² e = 0: 90 % of the step at the linear model's t90
@@ -209,7 +211,9 @@ def test_trajectory_reference_matches_the_sampled_linear_design() -> None:
             u = omega**2 * e + 2 * omega * e_dot
             e, e_dot = e + h * e_dot - 0.5 * h * h * u, e_dot - h * u
         lags.append(e)
-    achieved = [log_so3(exp_so3(u2 * k * T).T @ R.reshape(3, 3))[2] for k, R in enumerate(log["R_WB"])]
+    achieved = [
+        log_so3(exp_so3(u2 * k * T).T @ R.reshape(3, 3))[2] for k, R in enumerate(log["R_WB"])
+    ]
     assert_allclose(np.diff(achieved), -np.array(lags), rtol=0.05, atol=2e-6)
     # Continuous design: e(t) = Δω t e^(−ωt), 1.8 % of the step Δω t; sampled, 1.4 %.
     assert lags[0] < 0.4 * T * math.exp(-omega * T)

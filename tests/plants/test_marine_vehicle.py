@@ -85,13 +85,17 @@ def test_commanded_thrust_is_saturated_inside_the_model() -> None:
     applied = np.array([77.55, -77.55, 0.0, 50.0, 0.0, 0.0, -77.55, 0.0])
     assert_allclose(vehicle.GetOutputPort("thrust").Eval(context), applied)
     x_dot = vehicle.EvalTimeDerivatives(context).CopyToVector()
-    assert_allclose(config.vehicle_model().M @ x_dot[7:], config.allocator().A @ applied, atol=1e-12)
+    assert_allclose(
+        config.vehicle_model().M @ x_dot[7:], config.allocator().A @ applied, atol=1e-12
+    )
 
 
 def test_thrust_lag_is_first_order() -> None:
     config = HoveringAuv(thrust_time_constant=0.1)
     vehicle = MarineVehicle(config, np.zeros(3), np.zeros(3), np.eye(3))
-    command = np.array([10.0, 10.0, 10.0, 10.0, 5.0, 5.0, 5.0, 5.0]) * np.array([1, -1, 1, -1, 1, 1, 1, 1])
+    command = np.array([10.0, 10.0, 10.0, 10.0, 5.0, 5.0, 5.0, 5.0]) * np.array(
+        [1, -1, 1, -1, 1, 1, 1, 1]
+    )
     (out,) = simulate(vehicle, config, 0.25, command)
     assert_allclose(out["thrust"], command * (1.0 - math.exp(-2.5)), rtol=1e-6)
 
@@ -117,7 +121,9 @@ def test_buoyancy_restores_a_tilted_vehicle_to_upright() -> None:
     context = fixed_context(vehicle, thrust_command=np.zeros(8))
     w_dot = vehicle.EvalTimeDerivatives(context).CopyToVector()[10:13]
     k_B = R0[2]
-    expected = np.linalg.solve(model.M[3:, 3:], config.buoyant_force * 0.05 * np.cross([0, 0, 1], k_B))
+    expected = np.linalg.solve(
+        model.M[3:, 3:], config.buoyant_force * 0.05 * np.cross([0, 0, 1], k_B)
+    )
     assert_allclose(w_dot, expected, rtol=1e-12)
     samples = simulate(vehicle, config, 60.0, samples=600)
     tilt = np.array([math.acos(np.clip(s["R_WB"].reshape(3, 3)[2, 2], -1, 1)) for s in samples])
@@ -128,10 +134,14 @@ def test_buoyancy_restores_a_tilted_vehicle_to_upright() -> None:
     assert envelope[-1] < 0.01 < 0.5 < math.acos(R0[2, 2])
 
 
-def energies(config: HoveringAuv, samples: list[dict[str, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+def energies(
+    config: HoveringAuv, samples: list[dict[str, np.ndarray]]
+) -> tuple[np.ndarray, np.ndarray]:
     model = config.vehicle_model()
     kinetic = np.array([model.kinetic_energy(s["nu_B"]) for s in samples])
-    potential = np.array([model.potential_energy(s["p_WU"], s["R_WB"].reshape(3, 3)) for s in samples])
+    potential = np.array(
+        [model.potential_energy(s["p_WU"], s["R_WB"].reshape(3, 3)) for s in samples]
+    )
     return kinetic, potential
 
 
@@ -263,8 +273,14 @@ def test_multibody_vehicle_refuses_added_mass() -> None:
     "kwargs, message",
     [
         (dict(initial_position=np.zeros(2)), r"^initial_position: must be 3 finite numbers"),
-        (dict(initial_velocity=np.array([0, np.nan, 0])), r"^initial_velocity: must be 3 finite numbers"),
-        (dict(initial_R_WB=2 * np.eye(3)), r"^initial_R_WB: must be a rotation matrix, got \[\[2\.0"),
+        (
+            dict(initial_velocity=np.array([0, np.nan, 0])),
+            r"^initial_velocity: must be 3 finite numbers",
+        ),
+        (
+            dict(initial_R_WB=2 * np.eye(3)),
+            r"^initial_R_WB: must be a rotation matrix, got \[\[2\.0",
+        ),
         (dict(initial_R_WB=np.diag([1.0, 1.0, -1.0])), r"^initial_R_WB: must be a rotation matrix"),
     ],
 )
