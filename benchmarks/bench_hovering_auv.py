@@ -2,7 +2,7 @@
 
     python benchmarks/bench_hovering_auv.py [--steps 500] [--max-angular-rate 0.5]
         [--acceleration 0.15] [--speed 0.4] [--accuracy 1e-6] [--attitude-reference step]
-        [--figures DIR] [--sweep]
+        [--figures DIR] [--sweep] [--limits]
 
 The outer commands at period t = 0.5 s are the paper's Algorithm 2 attitude plan (the
 project's ``AttitudeGenerator``, optionally rate-limited) and a bounded world acceleration
@@ -16,7 +16,9 @@ what the figures need: the attitude error at each outer tick against the target
 ``R(k+1) = Exp(u2 t) R(k)`` (mean, peak), the fraction of fast ticks at which the
 allocation had to scale the wrench down, and the peak achieved angular rate, angular
 acceleration, acceleration and speed. ``--sweep`` runs a grid of rate limits and
-accelerations instead; ``--figures`` writes the attitude-tracking and thrust figures.
+accelerations instead; ``--limits`` prints the worst-direction limits derived from the
+thrust limits and inertia (``drake_uuv/models/vehicle_limits.py``) and what the vehicle
+reaches when asked for more; ``--figures`` writes the attitude-tracking and thrust figures.
 """
 
 import argparse
@@ -26,10 +28,11 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import LogVectorOutput
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 
 from drake_uuv.analysis.vehicle_figures import attitude_errors, plot_attitude_tracking, plot_thrusts
 from drake_uuv.controllers.attitude_generator import AttitudeGenerator
+from drake_uuv.models.vehicle_limits import vehicle_limits
 from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
 from drake_uuv.plants.hovering_auv_config import HoveringAuv
 
@@ -141,6 +144,49 @@ def run(
     )
 
 
+def check_limits(config: HoveringAuv) -> None:
+    """Prints the derived worst-direction limits and what the vehicle reaches when pushed."""
+    limits = vehicle_limits(config.vehicle_model(), config.allocator())
+    cases = (  # (what, u1_B, u2_W, seconds)
+        ("yaw rate", np.zeros(3), np.array([0.0, 0.0, 6.0]), 8.0),
+        ("sway speed", np.array([0.0, 3.0, 0.0]), np.zeros(3), 8.0),
+        ("diagonal acceleration", np.array([4.0, 4.0, 0.0]), np.zeros(3), 0.5),
+    )
+    print("derived worst-direction limits (pseudo-inverse allocation):")
+    for name, value in vars(limits).items():
+        print(f"  {name:22s} {value:.3f}")
+    print("reached in simulation when commanded beyond them (from rest, upright):")
+    for what, u1, u2, seconds in cases:
+        builder = DiagramBuilder()
+        plant = builder.AddSystem(
+            HoveringAuvPlant(config, OUTER_PERIOD, np.zeros(3), np.zeros(3), np.zeros(3))
+        )
+        for name, value in (("u1_B", u1), ("u2_W", u2)):
+            source = builder.AddSystem(ConstantVectorSource(value))
+            builder.Connect(source.get_output_port(), plant.GetInputPort(name))
+        h = plant.controller.period
+        w_log = LogVectorOutput(plant.GetOutputPort("w_WB"), builder, h)
+        v_log = LogVectorOutput(plant.GetOutputPort("v_WU"), builder, h)
+        simulator = Simulator(builder.Build())
+        configure_simulator(simulator, config, OUTER_PERIOD)
+        simulator.AdvanceTo(seconds)
+        w = np.linalg.norm(w_log.FindLog(simulator.get_context()).data().T, axis=1)
+        v = v_log.FindLog(simulator.get_context()).data().T
+        if what == "yaw rate":
+            print(
+                f"  yaw rate after {seconds:g} s  {w[-1]:.3f} rad/s; peak angular "
+                f"acceleration {np.max(np.diff(w)) / h:.2f} rad/s²"
+            )
+        elif what == "sway speed":
+            print(f"  sway speed after {seconds:g} s  {np.linalg.norm(v[-1]):.3f} m/s")
+        else:
+            a = np.linalg.norm(np.diff(v, axis=0), axis=1) / h
+            print(
+                f"  acceleration along body (1, 1, 0)/√2: {a[0]:.3f} m/s² over the first "
+                f"period, {a[: round(0.1 / h)].mean():.3f} m/s² over 0.1 s (drag grows)"
+            )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=500)
@@ -152,6 +198,7 @@ def main() -> None:
     parser.add_argument("--attitude-reference", choices=("trajectory", "step"), default=None)
     parser.add_argument("--figures", type=Path, default=None, help="directory for the figures")
     parser.add_argument("--sweep", action="store_true", help="rate limits × accelerations")
+    parser.add_argument("--limits", action="store_true", help="derived limits, checked")
     args = parser.parse_args()
     config = HoveringAuv()
     if args.accuracy is not None:
@@ -160,6 +207,9 @@ def main() -> None:
         config.controller_rate = args.rate
     if args.attitude_reference is not None:
         config.attitude_reference = args.attitude_reference
+    if args.limits:
+        check_limits(config)
+        return
     if args.sweep:
         print(f"{args.steps} steps, speed amplitude {args.speed} m/s; attitude error [rad]")
         print("max_rate  accel   err_mean  err_peak  scaled  peak_rate  peak_acc  cpu_s")
