@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
+from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, VectorLogSink
 
 from drake_uuv.analysis.vehicle_figures import attitude_errors, plot_attitude_tracking, plot_thrusts
 from drake_uuv.controllers.attitude_generator import AttitudeGenerator
@@ -59,7 +59,9 @@ class BoundedAcceleration(LeafSystem):
         output.set_value(R.T @ self.world_acceleration(context.get_time()))
 
 
-def build(config: HoveringAuv, max_angular_rate: float | None, acceleration: float, speed: float):
+def build(
+    config: HoveringAuv, max_angular_rate: float | None, acceleration: float, speed: float
+) -> tuple[Diagram, HoveringAuvPlant, dict[str, VectorLogSink], dict[str, VectorLogSink]]:
     """The plant, Algorithm 2 and the acceleration pattern, with loggers; returns the pieces."""
     builder = DiagramBuilder()
     plant = builder.AddNamedSystem(

@@ -5,6 +5,7 @@ from pydrake.systems.framework import BasicVector, Context, ContinuousState, Lea
 
 from drake_uuv.models.marine_vehicle import (
     QUATERNION_NORM_GAIN,
+    MarineVehicleModel,
     rotation_from_quaternion,
     rotation_rows,
 )
@@ -105,7 +106,7 @@ class MarineVehicle(LeafSystem):
         self.DeclareVectorOutputPort("thrust", self._n, self._calc_thrust, thrust_prerequisites)
 
     @property
-    def model(self):
+    def model(self) -> MarineVehicleModel:
         """The ``MarineVehicleModel`` this system integrates."""
         return self._model
 
