@@ -23,7 +23,7 @@ def configure_simulator(simulator: Simulator, config: HoveringAuv, outer_period:
     is constant within a controller period, so the fifth-order step over a whole period
     meets the accuracy almost always: one step (7 derivative evaluations) per period, with
     error control shortening steps only in violent transients. Against Drake's
-    MultibodyPlant model of the same vehicle it stays within 3e-7 m over 10 s of a
+    MultibodyPlant model of the same vehicle it stays within 2e-7 m over 10 s of a
     thrust history that turns and moves the vehicle (``tests/plants/test_marine_vehicle.py``,
     tolerance 1e-6 m). Error-controlled RK3 needs an accuracy of about 1e-6 for the same
     agreement and then takes 12 evaluations per period: 500 outer steps would cost about
