@@ -1,0 +1,247 @@
+"""Wall time and tracking of the hovering UUV plant driven by a fixed outer-command pattern.
+
+    python benchmarks/bench_hovering_auv.py [--steps 500] [--max-angular-rate 0.5]
+        [--acceleration 0.15] [--speed 0.4] [--accuracy 1e-6] [--attitude-reference step]
+        [--figures DIR] [--sweep] [--limits]
+
+The outer commands at period t = 0.5 s are the paper's Algorithm 2 attitude plan (the
+project's ``AttitudeGenerator``, optionally rate-limited) and a bounded world acceleration
+``a_W(τ) = a [cos(ωτ), cos(4ωτ/3), ½ cos(2ωτ)]``, ``ω = a/v``, sent as ``u1_B = R_WBᵀ a_W``;
+its velocity has amplitudes ``[v, ¾v, ¼v]``, so ``v`` keeps the speed under the vehicle's
+drag-limited 0.76 m/s while ``a`` sets the acceleration.
+
+Prints the wall and CPU time of the simulation alone (target: under ~10 s for 500 steps, so
+that a full closed loop stays under 20 s; CPU time is less inflated by a busy machine) and
+what the figures need: the attitude error at each outer tick against the target
+``R(k+1) = Exp(u2 t) R(k)`` (mean, peak), the fraction of fast ticks at which the
+allocation had to scale the wrench down, and the peak achieved angular rate, angular
+acceleration, acceleration and speed. ``--sweep`` runs a grid of rate limits and
+accelerations instead; ``--limits`` prints the worst-direction limits derived from the
+thrust limits and inertia (``drake_uuv/models/vehicle_limits.py``) and what the vehicle
+reaches when asked for more; ``--figures`` writes the attitude-tracking and thrust figures.
+"""
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, VectorLogSink
+
+from drake_uuv.analysis.vehicle_figures import attitude_errors, plot_attitude_tracking, plot_thrusts
+from drake_uuv.controllers.attitude_generator import AttitudeGenerator
+from drake_uuv.models.vehicle_limits import vehicle_limits
+from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
+from drake_uuv.plants.hovering_auv_config import HoveringAuv
+
+OUTER_PERIOD = 0.5
+BASELINE = np.array([-1.0, 1.0, 0.0])
+
+
+class BoundedAcceleration(LeafSystem):
+    """``u1_B = R_WBᵀ a_W(kt)``, the pattern of the module notes (input ``R_WB``)."""
+
+    def __init__(self, amplitude: float, speed: float) -> None:
+        super().__init__()
+        self._amplitude = amplitude
+        # a cos(ω τ) has velocity amplitude a/ω: ω = a/v gives v on x, ¾v on y, ¼v on z.
+        self._omega = amplitude / speed * np.array([1.0, 4.0 / 3.0, 2.0])
+        self._R = self.DeclareVectorInputPort("R_WB", 9)
+        self.DeclareVectorOutputPort("u1_B", 3, self._calc)
+
+    def world_acceleration(self, time: float) -> np.ndarray:
+        return self._amplitude * np.array([1.0, 1.0, 0.5]) * np.cos(self._omega * time)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        R = self._R.Eval(context).reshape(3, 3)
+        output.set_value(R.T @ self.world_acceleration(context.get_time()))
+
+
+def build(
+    config: HoveringAuv, max_angular_rate: float | None, acceleration: float, speed: float
+) -> tuple[Diagram, HoveringAuvPlant, dict[str, VectorLogSink], dict[str, VectorLogSink]]:
+    """The plant, Algorithm 2 and the acceleration pattern, with loggers; returns the pieces."""
+    builder = DiagramBuilder()
+    plant = builder.AddNamedSystem(
+        "uuv", HoveringAuvPlant(config, OUTER_PERIOD, np.zeros(3), np.zeros(3), np.zeros(3))
+    )
+    attitude = builder.AddNamedSystem(
+        "attitude_generator",
+        AttitudeGenerator("trajectory", OUTER_PERIOD, BASELINE, max_angular_rate=max_angular_rate),
+    )
+    accel = builder.AddNamedSystem("acceleration", BoundedAcceleration(acceleration, speed))
+    builder.Connect(plant.GetOutputPort("R_WB"), attitude.GetInputPort("R_WB"))
+    builder.Connect(plant.GetOutputPort("R_WB"), accel.GetInputPort("R_WB"))
+    builder.Connect(attitude.GetOutputPort("w_W"), plant.GetInputPort("u2_W"))
+    builder.Connect(accel.GetOutputPort("u1_B"), plant.GetInputPort("u1_B"))
+    h = plant.controller.period
+    outer = {
+        name: LogVectorOutput(plant.GetOutputPort(name), builder, OUTER_PERIOD)
+        for name in ("R_WB", "R_WB_command", "w_WB", "w_WB_command")
+    }
+    fast = {
+        name: LogVectorOutput(plant.GetOutputPort(name), builder, h)
+        for name in ("thrust", "allocation_scale", "w_WB", "v_WU", "nu_B")
+    }
+    return builder.Build(), plant, outer, fast
+
+
+def run(
+    config: HoveringAuv,
+    steps: int,
+    max_angular_rate: float | None,
+    acceleration: float,
+    speed: float,
+) -> tuple[dict[str, float], dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Simulates ``steps`` outer steps: the figures printed by ``main``, the logs at the outer
+    and at the controller's period (dicts keyed by port name, plus ``time``)."""
+    start = time.perf_counter()
+    diagram, plant, outer, fast = build(config, max_angular_rate, acceleration, speed)
+    simulator = Simulator(diagram)
+    configure_simulator(simulator, config, OUTER_PERIOD)
+    simulator.Initialize()
+    built, cpu = time.perf_counter(), time.process_time()
+    simulator.AdvanceTo(steps * OUTER_PERIOD)
+    wall, cpu = time.perf_counter() - built, time.process_time() - cpu
+    context = simulator.get_context()
+    log = {name: logger.FindLog(context).data().T for name, logger in outer.items()}
+    log["time"] = outer["R_WB"].FindLog(context).sample_times()
+    fast_log = {name: logger.FindLog(context).data().T for name, logger in fast.items()}
+    fast_log["time"] = fast["thrust"].FindLog(context).sample_times()
+    # Row k of the outer logs is step k before its update: R_WB_command there is R(k) as
+    # commanded at step k − 1, so row-by-row differences are the tracking error at each tick.
+    errors = attitude_errors(log)[1:]
+    scale = fast_log["allocation_scale"]
+    h = plant.controller.period
+    w = fast_log["w_WB"]
+    v = fast_log["v_WU"]
+    integrator = simulator.get_integrator()
+    return (
+        {
+            "wall_s": wall,
+            "cpu_s": cpu,
+            "build_s": built - start,
+            "attitude_error_mean_rad": float(np.mean(errors)),
+            "attitude_error_peak_rad": float(np.max(errors)),
+            "scaled_fraction": float(np.mean(np.any(scale < 1.0 - 1e-12, axis=1))),
+            "at_limit_fraction": float(
+                np.mean(
+                    np.any(np.abs(fast_log["thrust"]) >= config.max_thrust * (1 - 1e-9), axis=1)
+                )
+            ),
+            "peak_rate_cmd_rad_s": float(np.max(np.linalg.norm(log["w_WB_command"], axis=1))),
+            "peak_rate_rad_s": float(np.max(np.linalg.norm(w, axis=1))),
+            "peak_angular_acceleration_rad_s2": float(
+                np.max(np.linalg.norm(np.diff(w, axis=0), axis=1)) / h
+            ),
+            "peak_acceleration_m_s2": float(np.max(np.linalg.norm(np.diff(v, axis=0), axis=1)) / h),
+            "peak_speed_m_s": float(np.max(np.linalg.norm(v, axis=1))),
+            "derivative_evaluations": integrator.get_num_derivative_evaluations(),
+            "integrator_steps": integrator.get_num_steps_taken(),
+        },
+        log,
+        fast_log,
+    )
+
+
+def check_limits(config: HoveringAuv) -> None:
+    """Prints the derived worst-direction limits and what the vehicle reaches when pushed."""
+    limits = vehicle_limits(config.vehicle_model(), config.allocator())
+    cases = (  # (what, u1_B, u2_W, seconds)
+        ("yaw rate", np.zeros(3), np.array([0.0, 0.0, 6.0]), 8.0),
+        ("sway speed", np.array([0.0, 3.0, 0.0]), np.zeros(3), 8.0),
+        ("diagonal acceleration", np.array([4.0, 4.0, 0.0]), np.zeros(3), 0.5),
+    )
+    print("derived worst-direction limits (pseudo-inverse allocation):")
+    for name, value in vars(limits).items():
+        print(f"  {name:22s} {value:.3f}")
+    print("reached in simulation when commanded beyond them (from rest, upright):")
+    for what, u1, u2, seconds in cases:
+        builder = DiagramBuilder()
+        plant = builder.AddSystem(
+            HoveringAuvPlant(config, OUTER_PERIOD, np.zeros(3), np.zeros(3), np.zeros(3))
+        )
+        for name, value in (("u1_B", u1), ("u2_W", u2)):
+            source = builder.AddSystem(ConstantVectorSource(value))
+            builder.Connect(source.get_output_port(), plant.GetInputPort(name))
+        h = plant.controller.period
+        w_log = LogVectorOutput(plant.GetOutputPort("w_WB"), builder, h)
+        v_log = LogVectorOutput(plant.GetOutputPort("v_WU"), builder, h)
+        simulator = Simulator(builder.Build())
+        configure_simulator(simulator, config, OUTER_PERIOD)
+        simulator.AdvanceTo(seconds)
+        w = np.linalg.norm(w_log.FindLog(simulator.get_context()).data().T, axis=1)
+        v = v_log.FindLog(simulator.get_context()).data().T
+        if what == "yaw rate":
+            print(
+                f"  yaw rate after {seconds:g} s  {w[-1]:.3f} rad/s; peak angular "
+                f"acceleration {np.max(np.diff(w)) / h:.2f} rad/s²"
+            )
+        elif what == "sway speed":
+            print(f"  sway speed after {seconds:g} s  {np.linalg.norm(v[-1]):.3f} m/s")
+        else:
+            a = np.linalg.norm(np.diff(v, axis=0), axis=1) / h
+            print(
+                f"  acceleration along body (1, 1, 0)/√2: {a[0]:.3f} m/s² over the first "
+                f"period, {a[: round(0.1 / h)].mean():.3f} m/s² over 0.1 s (drag grows)"
+            )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=500)
+    parser.add_argument("--max-angular-rate", type=float, default=None)
+    parser.add_argument("--acceleration", type=float, default=0.15, help="a [m/s²]")
+    parser.add_argument("--speed", type=float, default=0.4, help="v [m/s]")
+    parser.add_argument("--accuracy", type=float, default=None)
+    parser.add_argument("--rate", type=float, default=None, help="controller rate [Hz]")
+    parser.add_argument("--attitude-reference", choices=("trajectory", "step"), default=None)
+    parser.add_argument("--figures", type=Path, default=None, help="directory for the figures")
+    parser.add_argument("--sweep", action="store_true", help="rate limits × accelerations")
+    parser.add_argument("--limits", action="store_true", help="derived limits, checked")
+    args = parser.parse_args()
+    config = HoveringAuv()
+    if args.accuracy is not None:
+        config.integrator_accuracy = args.accuracy
+    if args.rate is not None:
+        config.controller_rate = args.rate
+    if args.attitude_reference is not None:
+        config.attitude_reference = args.attitude_reference
+    if args.limits:
+        check_limits(config)
+        return
+    if args.sweep:
+        print(f"{args.steps} steps, speed amplitude {args.speed} m/s; attitude error [rad]")
+        print("max_rate  accel   err_mean  err_peak  scaled  peak_rate  peak_acc  cpu_s")
+        for rate in (None, 1.0, 0.5, 0.3):
+            for acceleration in (0.15, 0.5, 1.0):
+                f, _, _ = run(config, args.steps, rate, acceleration, args.speed)
+                print(
+                    f"{rate!s:8s}  {acceleration:5.2f}  {f['attitude_error_mean_rad']:8.2e}  "
+                    f"{f['attitude_error_peak_rad']:8.2e}  {f['scaled_fraction']:6.3f}  "
+                    f"{f['peak_rate_rad_s']:9.2f}  {f['peak_acceleration_m_s2']:8.2f}  "
+                    f"{f['cpu_s']:5.1f}"
+                )
+        return
+    figures, log, fast_log = run(
+        config, args.steps, args.max_angular_rate, args.acceleration, args.speed
+    )
+    print(
+        f"{args.steps} outer steps ({args.steps * OUTER_PERIOD:g} s), controller "
+        f"{config.controller_rate:g} Hz, RK5 accuracy {config.integrator_accuracy:g}, "
+        f"attitude reference {config.attitude_reference}, max angular rate "
+        f"{args.max_angular_rate}, acceleration amplitude {args.acceleration} m/s², speed "
+        f"amplitude {args.speed} m/s"
+    )
+    for name, value in figures.items():
+        print(f"  {name:36s} {value:.4g}")
+    if args.figures is not None:
+        plot_attitude_tracking(log, args.figures / "vehicle_attitude.png")
+        plot_thrusts(fast_log, config.max_thrust, args.figures / "vehicle_thrusts.png")
+        print(f"  figures in {args.figures}/")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,290 @@
+"""MarineVehicle: ports, closed-form derivatives, hydrostatics, damping, and the MultibodyPlant cross-check."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from pydrake.math import RollPitchYaw, RotationMatrix
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
+from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import ConstantVectorSource
+
+from drake_uuv.plants.hovering_auv import configure_simulator
+from drake_uuv.plants.hovering_auv_config import HoveringAuv
+from drake_uuv.plants.marine_vehicle import MarineVehicle
+from drake_uuv.plants.multibody_vehicle import MultibodyVehicle
+from drake_uuv.so3 import exp_so3, log_so3
+from drake_uuv.testing import fixed_context
+
+OUTPUTS = {"p_WU": 3, "v_WU": 3, "R_WB": 9, "w_WB": 3, "nu_B": 6, "thrust": 8}
+
+
+def simulate(
+    vehicle: MarineVehicle,
+    config: HoveringAuv,
+    duration: float,
+    thrust: np.ndarray | None = None,
+    samples: int = 1,
+) -> list[dict[str, np.ndarray]]:
+    """Runs the vehicle under a constant thrust command; outputs at ``samples`` even times."""
+    builder = DiagramBuilder()
+    builder.AddSystem(vehicle)
+    source = builder.AddSystem(ConstantVectorSource(np.zeros(8) if thrust is None else thrust))
+    builder.Connect(source.get_output_port(), vehicle.get_input_port())
+    simulator = Simulator(builder.Build())
+    configure_simulator(simulator, config, 0.5)
+    context = vehicle.GetMyContextFromRoot(simulator.get_context())
+    result = []
+    for time in np.linspace(duration / samples, duration, samples):
+        simulator.AdvanceTo(time)
+        result.append({name: vehicle.GetOutputPort(name).Eval(context).copy() for name in OUTPUTS})
+    return result
+
+
+def test_ports_and_initial_outputs() -> None:
+    R0 = RotationMatrix(RollPitchYaw(0.1, -0.3, 2.0)).matrix()
+    p0, v0, w0 = np.array([1.0, -2.0, 3.0]), np.array([0.1, 0.2, -0.3]), np.array([0.4, -0.5, 0.6])
+    vehicle = MarineVehicle(HoveringAuv(), p0, v0, R0, w0)
+    assert vehicle.get_input_port().get_name() == "thrust_command"
+    assert vehicle.get_input_port().size() == 8
+    assert {vehicle.get_output_port(i).get_name(): vehicle.get_output_port(i).size()
+            for i in range(vehicle.num_output_ports())} == OUTPUTS  # fmt: skip
+    # Only the applied thrust (no lag) feeds through; the motion is state.
+    for name in OUTPUTS:
+        assert vehicle.HasDirectFeedthrough(0, vehicle.GetOutputPort(name).get_index()) == (
+            name == "thrust"
+        )
+    context = fixed_context(vehicle, thrust_command=np.zeros(8))
+    out = {name: vehicle.GetOutputPort(name).Eval(context) for name in OUTPUTS}
+    assert_allclose(out["p_WU"], p0)
+    assert_allclose(out["v_WU"], v0, atol=1e-15)
+    assert_allclose(out["R_WB"].reshape(3, 3), R0, atol=1e-15)
+    assert_allclose(out["w_WB"], w0, atol=1e-15)
+    assert_allclose(out["nu_B"], np.concatenate([R0.T @ v0, R0.T @ w0]), atol=1e-15)
+
+
+def test_derivatives_at_rest_are_the_thrust_wrench_through_the_mass_matrix() -> None:
+    config = HoveringAuv()
+    R0 = RotationMatrix(RollPitchYaw(0.0, 0.0, 0.7)).matrix()  # upright: no restoring moment
+    vehicle = MarineVehicle(config, np.zeros(3), np.zeros(3), R0)
+    thrust = np.array([10.0, -5.0, 3.0, 20.0, 15.0, -30.0, 7.0, 1.0])
+    context = fixed_context(vehicle, thrust_command=thrust)
+    x_dot = vehicle.EvalTimeDerivatives(context).CopyToVector()
+    assert_allclose(x_dot[:7], 0.0, atol=1e-15)  # no velocity: no motion of p or q
+    M = config.vehicle_model().M
+    assert_allclose(M @ x_dot[7:], config.allocator().A @ thrust, atol=1e-12)
+
+
+def test_commanded_thrust_is_saturated_inside_the_model() -> None:
+    config = HoveringAuv()
+    vehicle = MarineVehicle(config, np.zeros(3), np.zeros(3), np.eye(3))
+    command = np.array([1000.0, -1000.0, 0.0, 50.0, 0.0, 0.0, -80.0, 0.0])
+    context = fixed_context(vehicle, thrust_command=command)
+    applied = np.array([77.55, -77.55, 0.0, 50.0, 0.0, 0.0, -77.55, 0.0])
+    assert_allclose(vehicle.GetOutputPort("thrust").Eval(context), applied)
+    x_dot = vehicle.EvalTimeDerivatives(context).CopyToVector()
+    assert_allclose(
+        config.vehicle_model().M @ x_dot[7:], config.allocator().A @ applied, atol=1e-12
+    )
+
+
+def test_thrust_lag_is_first_order() -> None:
+    config = HoveringAuv(thrust_time_constant=0.1)
+    vehicle = MarineVehicle(config, np.zeros(3), np.zeros(3), np.eye(3))
+    command = np.array([10.0, 10.0, 10.0, 10.0, 5.0, 5.0, 5.0, 5.0]) * np.array(
+        [1, -1, 1, -1, 1, 1, 1, 1]
+    )
+    (out,) = simulate(vehicle, config, 0.25, command)
+    assert_allclose(out["thrust"], command * (1.0 - math.exp(-2.5)), rtol=1e-6)
+
+
+def test_neutral_vehicle_at_rest_neither_drifts_nor_turns_over_60_s() -> None:
+    config = HoveringAuv()
+    R0 = RotationMatrix(RollPitchYaw(0.0, 0.0, 1.2)).matrix()
+    vehicle = MarineVehicle(config, np.array([1.0, 2.0, -3.0]), np.zeros(3), R0)
+    (out,) = simulate(vehicle, config, 60.0)
+    assert_allclose(out["p_WU"], [1.0, 2.0, -3.0], atol=1e-12)
+    assert np.linalg.norm(log_so3(out["R_WB"].reshape(3, 3) @ R0.T)) < 1e-12
+    assert_allclose(out["nu_B"], 0.0, atol=1e-12)
+
+
+def test_buoyancy_restores_a_tilted_vehicle_to_upright() -> None:
+    config = HoveringAuv()
+    model = config.vehicle_model()
+    roll, pitch = 0.5, -0.4
+    R0 = RotationMatrix(RollPitchYaw(roll, pitch, 0.3)).matrix()
+    vehicle = MarineVehicle(config, np.zeros(3), np.zeros(3), R0)
+    # At release, ω̇_B = M_rot⁻¹ τ with the buoyancy's moment τ = (z_BG e_z) × (B k_B) about G
+    # (k_B = R_WBᵀ e_z, the world's up in the body), which turns k_B back towards e_z.
+    context = fixed_context(vehicle, thrust_command=np.zeros(8))
+    w_dot = vehicle.EvalTimeDerivatives(context).CopyToVector()[10:13]
+    k_B = R0[2]
+    expected = np.linalg.solve(
+        model.M[3:, 3:], config.buoyant_force * 0.05 * np.cross([0, 0, 1], k_B)
+    )
+    assert_allclose(w_dot, expected, rtol=1e-12)
+    samples = simulate(vehicle, config, 60.0, samples=600)
+    tilt = np.array([math.acos(np.clip(s["R_WB"].reshape(3, 3)[2, 2], -1, 1)) for s in samples])
+    # It rocks about upright (√(B z_BG / M_rot) ≈ 3 rad/s) with a decaying envelope; roll has
+    # quadratic damping only, so the envelope falls like 1/t rather than exponentially.
+    envelope = tilt.reshape(6, 100).max(axis=1)
+    assert np.all(np.diff(envelope) < 0.0)
+    assert envelope[-1] < 0.01 < 0.5 < math.acos(R0[2, 2])
+
+
+def energies(
+    config: HoveringAuv, samples: list[dict[str, np.ndarray]]
+) -> tuple[np.ndarray, np.ndarray]:
+    model = config.vehicle_model()
+    kinetic = np.array([model.kinetic_energy(s["nu_B"]) for s in samples])
+    potential = np.array(
+        [model.potential_energy(s["p_WU"], s["R_WB"].reshape(3, 3)) for s in samples]
+    )
+    return kinetic, potential
+
+
+@pytest.mark.parametrize("restoring", [False, True])
+def test_damping_removes_energy_without_thrust(restoring: bool) -> None:
+    # Without restoring moments (CB at G) the kinetic energy ½ νᵀMν must fall; with them,
+    # kinetic plus potential energy. C(ν) does no work, so only D(ν) changes either.
+    config = HoveringAuv(center_of_buoyancy=[0.0, 0.0, 0.05 if restoring else 0.0])
+    R0 = RotationMatrix(RollPitchYaw(0.3, 0.2, -0.1)).matrix()
+    vehicle = MarineVehicle(
+        config, np.zeros(3), np.array([0.5, -0.3, 0.2]), R0, np.array([1.0, -2.0, 1.5])
+    )
+    samples = simulate(vehicle, config, 5.0, samples=50)
+    kinetic, potential = energies(config, samples)
+    total = kinetic + (potential if restoring else 0.0)
+    initial = config.vehicle_model().kinetic_energy(
+        np.concatenate([R0.T @ [0.5, -0.3, 0.2], R0.T @ [1.0, -2.0, 1.5]])
+    )
+    assert np.all(np.diff(total) < 0.0)
+    assert kinetic[-1] < 0.01 * initial
+
+
+def test_without_damping_the_energy_is_conserved() -> None:
+    # The check that the energy tests can fail: with D = 0 the Coriolis terms (rigid body
+    # and added mass) and the restoring forces conserve kinetic plus potential energy.
+    config = HoveringAuv(linear_damping=[0.0] * 6, quadratic_damping=[0.0] * 6)
+    R0 = RotationMatrix(RollPitchYaw(0.3, 0.2, -0.1)).matrix()
+    vehicle = MarineVehicle(
+        config, np.zeros(3), np.array([0.5, -0.3, 0.2]), R0, np.array([1.0, -2.0, 1.5])
+    )
+    kinetic, potential = energies(config, simulate(vehicle, config, 5.0, samples=10))
+    total = kinetic + potential
+    assert np.ptp(total) < 1e-6 * kinetic[0]
+
+
+def test_quaternion_off_the_unit_sphere_is_pulled_back() -> None:
+    config = HoveringAuv()
+    R0 = RotationMatrix(RollPitchYaw(0.3, 0.2, -0.1)).matrix()
+    vehicle = MarineVehicle(config, np.zeros(3), np.zeros(3), R0, np.array([1.0, -2.0, 1.5]))
+    builder = DiagramBuilder()
+    builder.AddSystem(vehicle)
+    source = builder.AddSystem(ConstantVectorSource(np.zeros(8)))
+    builder.Connect(source.get_output_port(), vehicle.get_input_port())
+    simulator = Simulator(builder.Build())
+    configure_simulator(simulator, config, 0.5)
+    context = vehicle.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    x = context.get_continuous_state_vector().CopyToVector()
+    x[3:7] *= 1.05  # as if the integrator had drifted
+    context.SetContinuousState(x)
+    assert_allclose(vehicle.GetOutputPort("R_WB").Eval(context).reshape(3, 3), R0, atol=1e-15)
+    simulator.AdvanceTo(5.0)
+    q = context.get_continuous_state_vector().CopyToVector()[3:7]
+    # |q|² − 1 decays like e^(−2λt) near 1 (λ = 1): from 0.1025 to about 5e-6 in 5 s.
+    assert abs(q @ q - 1.0) < 1e-4
+    R = vehicle.GetOutputPort("R_WB").Eval(context).reshape(3, 3)
+    assert_allclose(R.T @ R, np.eye(3), atol=1e-14)
+
+
+class SmoothThrust(LeafSystem):
+    """Thrusts that turn and move the vehicle: the allocation of a sinusoidal body wrench."""
+
+    def __init__(self, config: HoveringAuv) -> None:
+        super().__init__()
+        self._pinv = config.allocator().A_pinv
+        self.DeclareVectorOutputPort("thrust_command", 8, self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        t = context.get_time()
+        wrench = [
+            60 * math.sin(0.7 * t), 40 * math.cos(0.5 * t), 30 * math.sin(0.9 * t),
+            8 * math.sin(1.1 * t), 6 * math.cos(0.8 * t), 10 * math.sin(0.6 * t) + 5,
+        ]  # fmt: skip
+        output.set_value(self._pinv @ wrench)
+
+
+@pytest.mark.parametrize("time_constant", [0.0, 0.05])
+def test_leaf_system_agrees_with_the_multibody_plant_to_a_micrometre(time_constant: float) -> None:
+    # Added mass off (SpatialInertia holds one scalar mass); G off the body origin so that the
+    # rigid-body Coriolis terms of M_RB's off-diagonal blocks are exercised; buoyancy ≠ weight.
+    config = dataclasses.replace(
+        HoveringAuv(),
+        added_mass=np.zeros((6, 6)).tolist(),
+        center_of_gravity=[0.01, -0.02, -0.03],
+        buoyancy=31.02 * 9.81 + 2.0,
+        thrust_time_constant=time_constant,
+    )
+    p0, v0, w0 = np.array([1.0, 2.0, 3.0]), np.array([0.1, -0.2, 0.05]), np.array([0.3, 0.1, -0.2])
+    R0 = exp_so3(np.array([0.2, -0.1, 0.5]))
+    final = {}
+    for name, system in (
+        ("leaf", MarineVehicle(config, p0, v0, R0, w0)),
+        ("multibody", MultibodyVehicle(config)),
+    ):
+        builder = DiagramBuilder()
+        builder.AddSystem(system)
+        source = builder.AddSystem(SmoothThrust(config))
+        builder.Connect(source.get_output_port(), system.GetInputPort("thrust_command"))
+        simulator = Simulator(builder.Build())
+        root = simulator.get_mutable_context()
+        if name == "leaf":
+            configure_simulator(simulator, config, 0.5)  # the default accuracy, as deployed
+        else:
+            config_mbp = SimulatorConfig(integration_scheme="runge_kutta5", accuracy=1e-10)
+            ApplySimulatorConfig(config_mbp, simulator)
+            system.set_initial_state(root, p0, R0, v0, w0)
+        simulator.AdvanceTo(10.0)
+        if name == "leaf":
+            context = system.GetMyContextFromRoot(root)
+            p = system.GetOutputPort("p_WU").Eval(context)
+            R = system.GetOutputPort("R_WB").Eval(context).reshape(3, 3)
+            v = system.GetOutputPort("v_WU").Eval(context)
+        else:
+            X, V = system.pose(root), system.spatial_velocity(root)
+            p, R, v = X.translation(), X.rotation().matrix(), V.translational()
+        final[name] = p, R, v
+    (p_leaf, R_leaf, v_leaf), (p_mb, R_mb, v_mb) = final["leaf"], final["multibody"]
+    assert np.linalg.norm(p_mb - p0) > 1.5 and np.linalg.norm(log_so3(R_mb @ R0.T)) > 0.5
+    assert np.linalg.norm(p_leaf - p_mb) < 1e-6
+    assert np.linalg.norm(log_so3(R_leaf @ R_mb.T)) < 1e-6
+    assert np.linalg.norm(v_leaf - v_mb) < 1e-6
+
+
+def test_multibody_vehicle_refuses_added_mass() -> None:
+    with pytest.raises(ValueError, match=r"^config\.added_mass: must be zero"):
+        MultibodyVehicle(HoveringAuv())
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(initial_position=np.zeros(2)), r"^initial_position: must be 3 finite numbers"),
+        (
+            dict(initial_velocity=np.array([0, np.nan, 0])),
+            r"^initial_velocity: must be 3 finite numbers",
+        ),
+        (
+            dict(initial_R_WB=2 * np.eye(3)),
+            r"^initial_R_WB: must be a rotation matrix, got \[\[2\.0",
+        ),
+        (dict(initial_R_WB=np.diag([1.0, 1.0, -1.0])), r"^initial_R_WB: must be a rotation matrix"),
+    ],
+)
+def test_bad_initial_state_names_the_parameter(kwargs: dict, message: str) -> None:
+    args = dict(initial_position=np.zeros(3), initial_velocity=np.zeros(3), initial_R_WB=np.eye(3))
+    with pytest.raises(ValueError, match=message):
+        MarineVehicle(HoveringAuv(), **{**args, **kwargs})
