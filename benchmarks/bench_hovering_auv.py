@@ -5,7 +5,7 @@
         [--figures DIR] [--sweep] [--limits]
 
 The outer commands at period t = 0.5 s are the paper's Algorithm 2 attitude plan (the
-project's ``AttitudeGenerator``, optionally rate-limited) and a bounded world acceleration
+project's ``TrajectoryAttitudeGenerator``, optionally rate-limited) and a bounded world acceleration
 ``a_W(τ) = a [cos(ωτ), cos(4ωτ/3), ½ cos(2ωτ)]``, ``ω = a/v``, sent as ``u1_B = R_WBᵀ a_W``;
 its velocity has amplitudes ``[v, ¾v, ¼v]``, so ``v`` keeps the speed under the vehicle's
 drag-limited 0.76 m/s while ``a`` sets the acceleration.
@@ -31,10 +31,10 @@ from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuil
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, VectorLogSink
 
 from drake_uuv.analysis.vehicle_figures import attitude_errors, plot_attitude_tracking, plot_thrusts
-from drake_uuv.controllers.attitude_generator import AttitudeGenerator
+from drake_uuv.attitude import TrajectoryAttitudeGenerator
 from drake_uuv.models.vehicle_limits import vehicle_limits
 from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
+from drake_uuv.scenario.plants import HoveringAuv
 
 OUTER_PERIOD = 0.5
 BASELINE = np.array([-1.0, 1.0, 0.0])
@@ -69,12 +69,12 @@ def build(
     )
     attitude = builder.AddNamedSystem(
         "attitude_generator",
-        AttitudeGenerator("trajectory", OUTER_PERIOD, BASELINE, max_angular_rate=max_angular_rate),
+        TrajectoryAttitudeGenerator(OUTER_PERIOD, BASELINE, max_angular_rate=max_angular_rate),
     )
     accel = builder.AddNamedSystem("acceleration", BoundedAcceleration(acceleration, speed))
     builder.Connect(plant.GetOutputPort("R_WB"), attitude.GetInputPort("R_WB"))
     builder.Connect(plant.GetOutputPort("R_WB"), accel.GetInputPort("R_WB"))
-    builder.Connect(attitude.GetOutputPort("w_W"), plant.GetInputPort("u2_W"))
+    builder.Connect(attitude.GetOutputPort("u2_W"), plant.GetInputPort("u2_W"))
     builder.Connect(accel.GetOutputPort("u1_B"), plant.GetInputPort("u1_B"))
     h = plant.controller.period
     outer = {

@@ -98,6 +98,11 @@ def run_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, flo
       speed [m/s]; ``acceleration_mean``/``_peak``: mean and largest |R u1|, the commanded
       (after any limit, i.e. applied) world acceleration [m/s²]. These measure what the
       tracking law asks of the vehicle.
+    - ``model_acceleration_rmse``: RMS of |(v(k+1) − v(k))/t − R u1(k)| [m/s²], how far the
+      vehicle's motion is from the commanded acceleration that the filter takes as known
+      (0 for the paper's kinematic vehicle).
+    - For a vehicle that logs its attitude target and thrusts (``!HoveringAuv``):
+      :func:`vehicle_metrics`.
     - ``pcrlb_position_rmse``, ``pcrlb_velocity_rmse``: √(mean over the window of the trace
       of the position/velocity block) of the PCRLB along this run's true trajectory, and
       ``kf_riccati_position_rmse``, ``kf_riccati_velocity_rmse`` the same of the paper's KF's
@@ -117,8 +122,52 @@ def run_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, flo
         "relative_speed_peak": float(np.max(speed)),
         "acceleration_mean": float(np.mean(acceleration)),
         "acceleration_peak": float(np.max(acceleration)),
+        "model_acceleration_rmse": model_acceleration_rmse(log, scenario),
+        **vehicle_metrics(log, scenario),
         **bound_metrics(log, scenario),
     }
+
+
+def model_acceleration_rmse(log: dict[str, np.ndarray], scenario: Scenario) -> float:
+    """RMS over the window of |(v(k+1) − v(k))/t − u1_W(k)| [m/s²] (see :func:`run_metrics`)."""
+    start = scenario.steady_state_start
+    achieved = np.diff(log["v_WU"][start:], axis=0) / scenario.time_step
+    return rms_norm(achieved - log["u1_W"][start:-1]) if len(achieved) else 0.0
+
+
+def vehicle_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, float]:
+    """What the outer loop's commands cost a vehicle that logs its attitude target
+    (``R_WB_command``), achieved rate (``w_WB``) and saturation counts (``saturation_ticks``),
+    over the steady-state window; empty for a vehicle that logs none of them.
+
+    - ``attitude_error_mean``/``_peak`` [rad]: |Log(R_cmd R_WBᵀ)| at the outer ticks, the
+      attitude reached against the one commanded for that tick.
+    - ``angular_rate_mean``/``_peak`` [rad/s]: |ω_WB| reached; ``angular_rate_error_mean``:
+      mean |ω_WB − u2| at the ticks.
+    - ``thrust_saturated_fraction``: the fraction of the controller's ticks whose wrench the
+      thrust allocation scaled down (some thruster at its limit), force or moment.
+    """
+    if "R_WB_command" not in log:
+        return {}
+    start = scenario.steady_state_start
+    R, R_cmd = log["R_WB"][start:], log["R_WB_command"][start:]
+    # The rotation angle of R_cmd Rᵀ from its trace, clipped for rounding.
+    cos_angle = 0.5 * (np.einsum("kij,kij->k", R_cmd, R) - 1.0)
+    error = np.arccos(np.clip(cos_angle, -1.0, 1.0))
+    rate = np.linalg.norm(log["w_WB"][start:], axis=1)
+    out = {
+        "attitude_error_mean": float(np.mean(error)),
+        "attitude_error_peak": float(np.max(error)),
+        "angular_rate_mean": float(np.mean(rate)),
+        "angular_rate_peak": float(np.max(rate)),
+        "angular_rate_error_mean": float(
+            np.mean(np.linalg.norm(log["w_WB"][start:] - log["w_WB_command"][start:], axis=1))
+        ),
+    }
+    if "saturation_ticks" in log:
+        ticks, _, _, either = log["saturation_ticks"][-1] - log["saturation_ticks"][start]
+        out["thrust_saturated_fraction"] = float(either / max(ticks, 1.0))
+    return out
 
 
 def bound_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, float]:

@@ -108,6 +108,12 @@ class EstimatorHealthMonitor:
         return None
 
     def __call__(self, root_context: Context) -> EventStatus:
+        # Only at the outer ticks: a plant with continuous state makes the simulator step
+        # between them, where the estimator has nothing new (and evaluating it costs a filter
+        # update on a measurement nobody takes).
+        time = root_context.get_time()
+        if abs(time - round(time / self._time_step) * self._time_step) > 1e-9 * max(time, 1.0):
+            return _SUCCEEDED
         context = self._estimator.GetMyContextFromRoot(root_context)
         problem = self.problem(context)
         if problem is None:

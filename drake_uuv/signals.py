@@ -14,30 +14,9 @@ the attitude (body to world), ``x_TU`` the relative state ``[q, ϑ]`` of U from 
 ``q = p_WU − p_WT`` and ``ϑ = v_WU − v_WT`` (the paper's Υ).
 """
 
-from dataclasses import dataclass
-
 from pydrake.systems.framework import System
 
-
-@dataclass(frozen=True)
-class Signal:
-    """One output port of the closed loop, and how a run logs it."""
-
-    name: str  # port name = logger name without "log_" = log.npz key
-    system: str  # the name of the system in the diagram that outputs it
-    shape: tuple[int, ...]  # one step's value in the log; () for a scalar
-    meaning: str
-    logged: bool = True
-    integer: bool = False  # a status code: logged as int8
-
-    @property
-    def size(self) -> int:
-        """The port's size (the product of ``shape``)."""
-        size = 1
-        for n in self.shape:
-            size *= n
-        return size
-
+from drake_uuv.primitives.signal import Signal
 
 SIGNALS: tuple[Signal, ...] = (
     # The plant slot (system "uuv").
@@ -91,7 +70,8 @@ SIGNAL_BY_NAME: dict[str, Signal] = {s.name: s for s in SIGNALS}
 
 def logged_signals(systems: dict[str, System]) -> list[Signal]:
     """The signals a run of these systems logs: :data:`SIGNALS` that are logged, then the
-    ``extra_signals`` a system declares (e.g. a real vehicle's thrusts)."""
+    ``extra_signals`` a system declares (e.g. a real vehicle's thrusts), a tuple of
+    :class:`~drake_uuv.primitives.signal.Signal` naming its own output ports."""
     signals = [s for s in SIGNALS if s.logged]
     for system in systems.values():
         signals += [s for s in getattr(system, "extra_signals", ()) if s.logged]

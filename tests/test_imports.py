@@ -17,8 +17,6 @@ import pkgutil
 from collections.abc import Iterator
 from pathlib import Path
 
-import pytest
-
 PACKAGE = "drake_uuv"
 SOURCE = Path(__file__).resolve().parent.parent / PACKAGE
 ROOT = "__init__"  # the package's own __init__: the public facade

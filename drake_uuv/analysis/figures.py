@@ -30,6 +30,7 @@ from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter  # noqa: E402
 
 from drake_uuv.analysis.stats import nees_band  # noqa: E402
+from drake_uuv.analysis.vehicle_figures import attitude_tracking_figure, thrust_figure  # noqa: E402
 from drake_uuv.io import save_figure_atomic  # noqa: E402
 from drake_uuv.metrics import bound_covariances, errors  # noqa: E402
 from drake_uuv.scenario import Scenario, describe  # noqa: E402
@@ -298,13 +299,20 @@ def nees_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
 
 
 def run_figures(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, Figure]:
-    """The four figures of one run, by file stem."""
-    return {
+    """The figures of one run, by file stem: the four of every run, and for a vehicle that
+    logs its commanded attitude and thrusts (``!HoveringAuv``) its attitude tracking and
+    thrusts against their limits."""
+    figures = {
         "errors": error_figure(log, scenario),
         "trajectory": trajectory_figure(log, scenario),
         "excitation": excitation_figure(log, scenario),
         "nees": nees_figure(log, scenario),
     }
+    if "R_WB_command" in log:
+        figures["attitude_tracking"] = attitude_tracking_figure(log)
+    if "thrust" in log:
+        figures["thrusts"] = thrust_figure(log, scenario.plant.max_thrust)
+    return figures
 
 
 def write_run_figures(
@@ -313,7 +321,7 @@ def write_run_figures(
     folder: Path,
     formats: Iterable[str] = FORMATS,
 ) -> list[Path]:
-    """Writes the four figures of one run into ``folder`` (PNG and SVG); returns the paths."""
+    """Writes the figures of one run into ``folder`` (PNG and SVG); returns the paths."""
     folder = Path(folder)
     formats = tuple(formats)
     paths: list[Path] = []

@@ -13,11 +13,19 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
 
 from drake_uuv.io import save_figure_atomic  # noqa: E402
-from drake_uuv.so3 import log_so3  # noqa: E402
+from drake_uuv.models.so3 import log_so3  # noqa: E402
 
-__all__ = ["attitude_errors", "plot_attitude_tracking", "plot_thrusts", "roll_pitch_yaw"]
+__all__ = [
+    "attitude_errors",
+    "attitude_tracking_figure",
+    "plot_attitude_tracking",
+    "plot_thrusts",
+    "roll_pitch_yaw",
+    "thrust_figure",
+]
 
 _AXES = ("x", "y", "z")
 
@@ -42,6 +50,14 @@ def attitude_errors(log: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def plot_attitude_tracking(log: dict[str, np.ndarray], path: Path) -> Path:
+    """Writes :func:`attitude_tracking_figure` to ``path``."""
+    figure = attitude_tracking_figure(log)
+    save_figure_atomic(figure, path, dpi=120)
+    plt.close(figure)
+    return path
+
+
+def attitude_tracking_figure(log: dict[str, np.ndarray]) -> Figure:
     """Commanded against achieved attitude and angular rate.
 
     Needs ``time``, ``R_WB``, ``R_WB_command``, ``w_WB`` and ``w_WB_command``, logged at the
@@ -90,13 +106,23 @@ def plot_attitude_tracking(log: dict[str, np.ndarray], path: Path) -> Path:
         f"{error[1:].max():.3g} rad",
         fontsize=9,
     )
+    return figure
+
+
+def plot_thrusts(log: dict[str, np.ndarray], max_thrust: float, path: Path) -> Path:
+    """Writes :func:`thrust_figure` to ``path``."""
+    figure = thrust_figure(log, max_thrust)
     save_figure_atomic(figure, path, dpi=120)
     plt.close(figure)
     return path
 
 
-def plot_thrusts(log: dict[str, np.ndarray], max_thrust: float, path: Path) -> Path:
-    """The thrusts (``log["thrust"]``, N×n) against ``±max_thrust``, with time at the limit."""
+def thrust_figure(log: dict[str, np.ndarray], max_thrust: float) -> Figure:
+    """The thrusts (``log["thrust"]``, N×n) against ``±max_thrust``, with time at the limit.
+
+    With ``saturation_ticks`` in the log (the controller's counts at its own rate), the title
+    also gives the fraction of the controller's ticks whose wrench saturation scaled down.
+    """
     time = np.asarray(log["time"])
     thrust = np.asarray(log["thrust"])
     n = thrust.shape[1]
@@ -121,11 +147,15 @@ def plot_thrusts(log: dict[str, np.ndarray], max_thrust: float, path: Path) -> P
         )
         axis.grid(True, alpha=0.3)
     np.atleast_1d(axes)[-1].set_xlabel("time [s]")
-    figure.suptitle(
-        f"thrusts against ±{max_thrust:g} N: some thruster at its limit "
-        f"{100 * at_limit.any(axis=1).mean():.1f} % of the time",
-        fontsize=9,
+    title = (
+        f"thrusts against ±{max_thrust:g} N: some thruster at its limit at "
+        f"{100 * at_limit.any(axis=1).mean():.1f} % of the logged steps"
     )
-    save_figure_atomic(figure, path, dpi=120)
-    plt.close(figure)
-    return path
+    if "saturation_ticks" in log:
+        ticks, force, moment, _ = np.asarray(log["saturation_ticks"])[-1]
+        title += (
+            f"; wrench scaled down at {100 * force / max(ticks, 1):.1f} % (force), "
+            f"{100 * moment / max(ticks, 1):.1f} % (moment) of {ticks:.0f} controller ticks"
+        )
+    figure.suptitle(title, fontsize=9)
+    return figure

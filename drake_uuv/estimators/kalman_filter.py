@@ -68,7 +68,7 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
         e = scenario.estimator
         return cls(
             scenario.time_step,
-            np.asarray(scenario.target.acceleration_covariance),
+            e.filter_acceleration_covariance(scenario.target.acceleration_covariance),
             np.asarray(e.initial_estimate),
             np.asarray(e.initial_covariance),
             e.gate_probability,

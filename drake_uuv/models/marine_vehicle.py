@@ -39,7 +39,7 @@ import math
 
 import numpy as np
 
-from drake_uuv.so3 import hat
+from drake_uuv.models.so3 import hat
 
 __all__ = [
     "MarineVehicleModel",

@@ -6,12 +6,14 @@ u2 [rad/s], world frame, so that the paper's attitude step is ``R(k+1) = Exp(u2 
 both the commands of step k, held over ``[kt, (k+1)t)``; outputs ``p_WU``, ``v_WU`` (the
 body origin U, midpoint of the sonars, in the world [m, m/s]) and ``R_WB`` (row-major), the
 state at the time of the context. A plant may output more (a real vehicle's thrusts); it
-then lists those outputs in an ``extra_signals`` attribute so the run logs them. See
-:mod:`drake_uuv.signals`.
+then lists those outputs in an ``extra_signals`` attribute so the run logs them, and a plant
+with continuous state may set up the simulator's integrator in a ``configure_simulator``
+method. See :mod:`drake_uuv.signals`.
 """
 
 from drake_uuv.plants.factory import make_plant
+from drake_uuv.plants.hovering_auv import HoveringAuvPlant
 from drake_uuv.plants.kinematic_uuv import KinematicUuvPlant
 from drake_uuv.plants.target_random_walk import TargetRandomWalk
 
-__all__ = ["KinematicUuvPlant", "TargetRandomWalk", "make_plant"]
+__all__ = ["HoveringAuvPlant", "KinematicUuvPlant", "TargetRandomWalk", "make_plant"]

@@ -4,12 +4,14 @@ from collections.abc import Callable
 
 from pydrake.systems.framework import System
 
+from drake_uuv.plants.hovering_auv import HoveringAuvPlant
 from drake_uuv.plants.kinematic_uuv import KinematicUuvPlant
-from drake_uuv.scenario import KinematicUuv, Scenario
+from drake_uuv.scenario import HoveringAuv, KinematicUuv, Scenario
 
 #: Variant dataclass → the constructor of its system from a scenario.
 PLANTS: dict[type, Callable[[Scenario], System]] = {
     KinematicUuv: KinematicUuvPlant.from_scenario,
+    HoveringAuv: HoveringAuvPlant.from_scenario,
 }
 
 

@@ -7,9 +7,11 @@ from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
 from drake_uuv.plants.low_level_controller import LowLevelController
 from drake_uuv.plants.marine_vehicle import MarineVehicle
+from drake_uuv.primitives.signal import Signal
+from drake_uuv.scenario import Scenario
+from drake_uuv.scenario.plants import HoveringAuv
 
 __all__ = ["HoveringAuvPlant", "configure_simulator"]
 
@@ -71,6 +73,7 @@ class HoveringAuvPlant(Diagram):
         - v_WU_command
         - wrench_command
         - allocation_scale
+        - saturation_ticks
 
     - ``u1_B`` (3) [m/s²], ``u2_W`` (3) [rad/s]: the outer commands (read at outer ticks).
     - ``p_WU``, ``v_WU`` (3 each), ``R_WB`` (9, row-major): the plant contract.
@@ -80,9 +83,23 @@ class HoveringAuvPlant(Diagram):
       ``w_WB_command`` (3): ``u2`` in force; ``v_WU_command`` (3): the velocity reference.
     - ``wrench_command`` (6), ``allocation_scale`` (2): the body wrench asked for and the
       scales saturation applied to its force and moment parts.
+    - ``saturation_ticks`` (4): fast ticks so far, and those with the force, the moment, or
+      either scaled down by saturation.
 
-    Simulate with :func:`configure_simulator`.
+    Simulate with :func:`configure_simulator` (in the closed loop, the simulation calls this
+    plant's :meth:`configure_simulator`). :data:`extra_signals` are logged with the closed
+    loop's signals.
     """
+
+    #: The outputs beyond the plant contract that a run logs (once per outer step).
+    extra_signals = (
+        Signal("w_WB", "uuv", (3,), "achieved angular velocity of B in W [rad/s]"),
+        Signal("thrust", "uuv", (-1,), "applied thrusts [N]"),
+        Signal("R_WB_command", "uuv", (3, 3), "attitude target in force, Exp(u2 t) R(kt)"),
+        Signal("w_WB_command", "uuv", (3,), "commanded angular velocity u2 in force [rad/s]"),
+        Signal("allocation_scale", "uuv", (2,), "scales saturation applied to force, moment"),
+        Signal("saturation_ticks", "uuv", (4,), "fast ticks; with force, moment, either scaled"),
+    )
 
     def __init__(
         self,
@@ -127,10 +144,28 @@ class HoveringAuvPlant(Diagram):
             "v_WU_command",
             "wrench_command",
             "allocation_scale",
+            "saturation_ticks",
         ):
             builder.ExportOutput(controller.GetOutputPort(name), name)
         builder.BuildInto(self)
         self._vehicle, self._controller = vehicle, controller
+        self._config, self._time_step = config, float(time_step)
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> "HoveringAuvPlant":
+        """The vehicle of ``scenario.plant`` (a :class:`~drake_uuv.scenario.HoveringAuv`) at
+        ``scenario.uuv``'s initial state."""
+        return cls(
+            scenario.plant,
+            scenario.time_step,
+            np.asarray(scenario.uuv.initial_position),
+            np.asarray(scenario.uuv.initial_velocity),
+            np.asarray(scenario.uuv.initial_rpy),
+        )
+
+    def configure_simulator(self, simulator: Simulator) -> None:
+        """The integrator this vehicle needs (:func:`configure_simulator`)."""
+        configure_simulator(simulator, self._config, self._time_step)
 
     @property
     def vehicle(self) -> MarineVehicle:

@@ -5,8 +5,8 @@ import math
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
-from drake_uuv.so3 import cross, exp_so3, log_so3
+from drake_uuv.models.so3 import cross, exp_so3, log_so3
+from drake_uuv.scenario.plants import HoveringAuv
 
 
 class LowLevelController(LeafSystem):
@@ -73,6 +73,7 @@ class LowLevelController(LeafSystem):
         - v_WU_command
         - wrench_command
         - allocation_scale
+        - saturation_ticks
 
     - ``u1_B`` (3), ``u2_W`` (3): the outer loop's commands, read at outer ticks only.
     - ``R_WB`` (9, row-major), ``nu_B`` (6, ``[v_B, ω_B]``): the vehicle's state.
@@ -83,6 +84,8 @@ class LowLevelController(LeafSystem):
     - ``wrench_command`` (6): the body wrench τ asked of the allocation [N, N m].
     - ``allocation_scale`` (2): the scales the allocation applied to τ's force and moment
       parts (1, 1 when every thruster is within its limit).
+    - ``saturation_ticks`` (4): counts since the start, of fast ticks and of those whose
+      force, moment, or either, the allocation scaled down (the fraction of time saturated).
     """
 
     def __init__(self, config: HoveringAuv, outer_period: float, initial_R_WB: np.ndarray) -> None:
@@ -118,6 +121,9 @@ class LowLevelController(LeafSystem):
         self._thrust = self.DeclareDiscreteState(n)
         self._wrench = self.DeclareDiscreteState(6)
         self._scale = self.DeclareDiscreteState(np.ones(2))
+        # Counts for the run's statistics: fast ticks, and those whose force, moment, either
+        # the allocation had to scale down (a thruster at its limit).
+        self._saturation = self.DeclareDiscreteState(np.zeros(4))
         self.DeclarePeriodicDiscreteUpdateEvent(self._h, 0.0, self._update)
         self.DeclareStateOutputPort("thrust_command", self._thrust)
         self.DeclareStateOutputPort("R_WB_command", self._target)
@@ -125,6 +131,7 @@ class LowLevelController(LeafSystem):
         self.DeclareStateOutputPort("v_WU_command", self._velocity)
         self.DeclareStateOutputPort("wrench_command", self._wrench)
         self.DeclareStateOutputPort("allocation_scale", self._scale)
+        self.DeclareStateOutputPort("saturation_ticks", self._saturation)
 
     @property
     def period(self) -> float:
@@ -183,3 +190,7 @@ class LowLevelController(LeafSystem):
         discrete_state.set_value(self._velocity, v_ref)
         discrete_state.set_value(self._wrench, wrench)
         discrete_state.set_value(self._scale, np.array([force_scale, moment_scale]))
+        scaled = (1.0, force_scale < 1.0, moment_scale < 1.0, min(force_scale, moment_scale) < 1.0)
+        discrete_state.set_value(
+            self._saturation, context.get_discrete_state(self._saturation).value() + scaled
+        )

@@ -9,8 +9,8 @@ from drake_uuv.models.marine_vehicle import (
     rotation_from_quaternion,
     rotation_rows,
 )
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
-from drake_uuv.so3 import quaternion_from_matrix
+from drake_uuv.models.so3 import quaternion_from_matrix
+from drake_uuv.scenario.plants import HoveringAuv
 
 # Slices of the continuous state [p_WU (3), q_WB (4), ν_B (6), applied thrust (n, with a lag)].
 _P, _Q, _V, _W, _NU = slice(0, 3), slice(3, 7), slice(7, 10), slice(10, 13), slice(7, 13)

@@ -29,7 +29,7 @@ from pydrake.multibody.tree import BodyIndex, RotationalInertia, SpatialInertia
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import FirstOrderLowPassFilter, Saturation
 
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
+from drake_uuv.scenario.plants import HoveringAuv
 
 __all__ = ["HydrostaticsAndDamping", "MultibodyVehicle"]
 

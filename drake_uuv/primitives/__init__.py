@@ -2,5 +2,6 @@
 
 from drake_uuv.primitives.noise_hold import NoiseHold
 from drake_uuv.primitives.random_input import declare_random_input, random_inputs
+from drake_uuv.primitives.signal import Signal
 
-__all__ = ["NoiseHold", "declare_random_input", "random_inputs"]
+__all__ = ["NoiseHold", "Signal", "declare_random_input", "random_inputs"]

@@ -31,7 +31,7 @@ from drake_uuv.scenario.loading import (
     validate_scenario,
     variants,
 )
-from drake_uuv.scenario.plants import KinematicUuv, PlantConfig
+from drake_uuv.scenario.plants import HoveringAuv, KinematicUuv, PlantConfig
 from drake_uuv.scenario.schema import (
     SECTIONS,
     SLOTS,
@@ -64,6 +64,7 @@ __all__ = [
     "EstimatorConfig",
     "EstimatorOptions",
     "FixedAttitude",
+    "HoveringAuv",
     "Iekf",
     "KinematicUuv",
     "LqrTracking",

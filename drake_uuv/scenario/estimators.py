@@ -40,12 +40,24 @@ class EstimatorOptions:
     initial_covariance: list[list[float]] = field(default_factory=lambda: _identity(6))
     # Reject a measurement whose NIS exceeds the χ² quantile of this probability; None: no gate.
     gate_probability: float | None = None
+    # [m²/s⁴] per axis, added to the target's W in the filter's process noise B W Bᵀ: what the
+    # vehicle does not follow of its commanded acceleration R u1, which the filter takes as
+    # known (0 for the paper's kinematic vehicle, which follows it exactly; a real vehicle's
+    # is measured by the run metric model_acceleration_rmse: variance ≈ rmse²/3 per axis).
+    added_acceleration_variance: float = 0.0
 
     def validate(self, name: str) -> None:
         check_choice(f"{name}.noise_model", self.noise_model, NOISE_MODELS)
         check_vector(f"{name}.initial_estimate", self.initial_estimate, 6)
         check_spd(f"{name}.initial_covariance", self.initial_covariance, 6)
         check_probability(f"{name}.gate_probability", self.gate_probability)
+        check_positive(
+            f"{name}.added_acceleration_variance", self.added_acceleration_variance, strict=False
+        )
+
+    def filter_acceleration_covariance(self, W: list[list[float]]) -> np.ndarray:
+        """The acceleration covariance of the filter's process noise: ``W + σ² I``."""
+        return np.asarray(W, dtype=float) + self.added_acceleration_variance * np.eye(3)
 
 
 @dataclass

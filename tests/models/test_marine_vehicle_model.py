@@ -16,8 +16,8 @@ from drake_uuv.models.marine_vehicle import (
     rigid_body_mass_matrix,
     rotation_from_quaternion,
 )
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
-from drake_uuv.so3 import exp_so3, hat, quaternion_from_matrix
+from drake_uuv.models.so3 import exp_so3, hat, quaternion_from_matrix
+from drake_uuv.scenario.plants import HoveringAuv
 
 RNG_SEED = 20240601
 

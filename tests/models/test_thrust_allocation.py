@@ -11,7 +11,7 @@ from drake_uuv.models.thrust_allocation import (
     allocation_matrix,
     weighted_pseudo_inverse,
 )
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
+from drake_uuv.scenario.plants import HoveringAuv
 
 RNG_SEED = 7
 

@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from drake_uuv.models.vehicle_limits import sphere_directions, utilisation_budget, vehicle_limits
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
+from drake_uuv.scenario.plants import HoveringAuv
 
 F = 77.55  # N per thruster
 HORIZONTAL = 2 * math.sqrt(2) * F  # |Fx| + |Fy| + |Mz|/0.32 m ≤ this (angled group)

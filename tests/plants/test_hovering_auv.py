@@ -16,18 +16,18 @@ from drake_uuv.analysis.vehicle_figures import (
     plot_thrusts,
     roll_pitch_yaw,
 )
-from drake_uuv.plants.double_integrator import double_integrator
+from drake_uuv.models.motion import double_integrator
+from drake_uuv.models.so3 import exp_so3, log_so3
 from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
 from drake_uuv.scenario import ScenarioError
-from drake_uuv.so3 import exp_so3, log_so3
+from drake_uuv.scenario.plants import HoveringAuv
 
 T = 0.5
 INPUTS = {"u1_B": 3, "u2_W": 3}
 OUTPUTS = {
     "p_WU": 3, "v_WU": 3, "R_WB": 9, "w_WB": 3, "nu_B": 6, "thrust": 8, "thrust_command": 8,
     "R_WB_command": 9, "w_WB_command": 3, "v_WU_command": 3, "wrench_command": 6,
-    "allocation_scale": 2,
+    "allocation_scale": 2, "saturation_ticks": 4,
 }  # fmt: skip
 
 

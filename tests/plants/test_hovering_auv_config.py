@@ -8,8 +8,8 @@ import pytest
 from numpy.testing import assert_allclose
 from pydrake.common.yaml import yaml_load_typed
 
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
 from drake_uuv.scenario import ScenarioError
+from drake_uuv.scenario.plants import HoveringAuv
 
 
 def test_defaults_are_valid_and_cited() -> None:

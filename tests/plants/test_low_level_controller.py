@@ -11,11 +11,11 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 
+from drake_uuv.models.so3 import exp_so3, log_so3
 from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
 from drake_uuv.plants.low_level_controller import LowLevelController
 from drake_uuv.scenario import ScenarioError
-from drake_uuv.so3 import exp_so3, log_so3
+from drake_uuv.scenario.plants import HoveringAuv
 from drake_uuv.testing import discrete_update, fixed_context
 
 T = 0.5
@@ -27,6 +27,7 @@ OUTPUTS = {
     "v_WU_command": 3,
     "wrench_command": 6,
     "allocation_scale": 2,
+    "saturation_ticks": 4,
 }
 
 
@@ -235,3 +236,20 @@ def test_bad_constructor_arguments_name_the_parameter() -> None:
         LowLevelController(HoveringAuv(), T, np.ones((3, 3)))
     with pytest.raises(ScenarioError, match=r"^config\.max_thrust: must be > 0, got 0\.0$"):
         LowLevelController(dataclasses.replace(HoveringAuv(), max_thrust=0.0), T, np.eye(3))
+
+
+def test_saturation_ticks_count_the_ticks_whose_wrench_was_scaled() -> None:
+    """An impossible acceleration command saturates every tick; a zero command none."""
+    for u1, saturated in ((np.zeros(3), False), (np.array([50.0, 0.0, 0.0]), True)):
+        plant = HoveringAuvPlant(HoveringAuv(), T, np.zeros(3), np.zeros(3), np.zeros(3))
+        context = plant.CreateDefaultContext()
+        plant.GetInputPort("u1_B").FixValue(context, u1)
+        plant.GetInputPort("u2_W").FixValue(context, np.zeros(3))
+        simulator = Simulator(plant, context)
+        configure_simulator(simulator, HoveringAuv(), T)
+        simulator.AdvanceTo(2.0)
+        ticks, force_scaled, _, either = plant.GetOutputPort("saturation_ticks").Eval(context)
+        period = plant.controller.period
+        assert ticks == pytest.approx(round(2.0 / period) + 1, abs=1)
+        assert force_scaled == (pytest.approx(ticks) if saturated else 0.0)
+        assert either >= force_scaled

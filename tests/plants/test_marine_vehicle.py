@@ -11,11 +11,11 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorC
 from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantVectorSource
 
+from drake_uuv.models.so3 import exp_so3, log_so3
 from drake_uuv.plants.hovering_auv import configure_simulator
-from drake_uuv.plants.hovering_auv_config import HoveringAuv
 from drake_uuv.plants.marine_vehicle import MarineVehicle
 from drake_uuv.plants.multibody_vehicle import MultibodyVehicle
-from drake_uuv.so3 import exp_so3, log_so3
+from drake_uuv.scenario.plants import HoveringAuv
 from drake_uuv.testing import fixed_context
 
 OUTPUTS = {"p_WU": 3, "v_WU": 3, "R_WB": 9, "w_WB": 3, "nu_B": 6, "thrust": 8}
