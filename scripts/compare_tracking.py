@@ -3,7 +3,7 @@
 Runs every variant of :data:`TRACKING_VARIANTS` (``--set`` overrides on the paper scenario)
 with seeds 0..runs−1 — the same seeds for every variant, so the target's motion and the sonar
 noise are identical between laws and the ratios are paired — and writes one Markdown page:
-the table per attitude mode, issue 6's acceptance checks (paired ratios with 95 % bootstrap
+the table per attitude mode, the acceptance checks (paired ratios with 95 % bootstrap
 intervals), the closed-loop eigenvalues and what the attitude plan itself demands.
 
     python scripts/compare_tracking.py [--runs 50] [--workers 2] [--out docs/tracking_comparison.md]
@@ -22,31 +22,38 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_uuv.controllers.attitude_generator import zeta
-from drake_uuv.controllers.lqr_tracking_controller import closed_loop_eigenvalues
 from drake_uuv.io import write_text_atomic
+from drake_uuv.models.attitude_plans import trajectory_attitude
+from drake_uuv.models.tracking_laws import closed_loop_eigenvalues, lqr_gain, paper_gain_matrix
 from drake_uuv.scenario import Scenario, load_scenario
-from drake_uuv.so3 import minimal_rotation
 
-ACCELERATION_LIMIT = 7.0  # m/s²: a ~31 kg hovering vehicle with 77.6 N thrusters (issue 6)
+ACCELERATION_LIMIT = 7.0  # m/s²: a ~31 kg hovering vehicle with 77.6 N thrusters
 _LIMIT = f"tracking.max_acceleration={ACCELERATION_LIMIT:g}"
 _LIMITED = f"limit {ACCELERATION_LIMIT:g} m/s²"
 
 # Variant name → overrides on the paper scenario. `drake-uuv compare` can take the same list.
 TRACKING_VARIANTS: dict[str, tuple[str, ...]] = {
-    "trajectory / paper": ("attitude.mode=trajectory", "tracking.type=paper"),
-    f"trajectory / paper, {_LIMITED}": ("attitude.mode=trajectory", "tracking.type=paper", _LIMIT),
-    "trajectory / lqr": ("attitude.mode=trajectory", "tracking.type=lqr"),
-    f"trajectory / lqr, {_LIMITED}": ("attitude.mode=trajectory", "tracking.type=lqr", _LIMIT),
-    "trajectory / lqr, no feed-forward": (
-        "attitude.mode=trajectory",
-        "tracking.type=lqr",
-        "tracking.lqr_feedforward=false",
+    "trajectory / paper": ("attitude=!TrajectoryAttitude", "tracking=!PaperTracking"),
+    f"trajectory / paper, {_LIMITED}": (
+        "attitude=!TrajectoryAttitude",
+        "tracking=!PaperTracking",
+        _LIMIT,
     ),
-    "random / paper": ("attitude.mode=random", "tracking.type=paper"),
-    f"random / paper, {_LIMITED}": ("attitude.mode=random", "tracking.type=paper", _LIMIT),
-    "random / lqr": ("attitude.mode=random", "tracking.type=lqr"),
-    f"random / lqr, {_LIMITED}": ("attitude.mode=random", "tracking.type=lqr", _LIMIT),
+    "trajectory / lqr": ("attitude=!TrajectoryAttitude", "tracking=!LqrTracking"),
+    f"trajectory / lqr, {_LIMITED}": (
+        "attitude=!TrajectoryAttitude",
+        "tracking=!LqrTracking",
+        _LIMIT,
+    ),
+    "trajectory / lqr, no feed-forward": (
+        "attitude=!TrajectoryAttitude",
+        "tracking=!LqrTracking",
+        "tracking.feedforward=false",
+    ),
+    "random / paper": ("attitude=!RandomAttitude", "tracking=!PaperTracking"),
+    f"random / paper, {_LIMITED}": ("attitude=!RandomAttitude", "tracking=!PaperTracking", _LIMIT),
+    "random / lqr": ("attitude=!RandomAttitude", "tracking=!LqrTracking"),
+    f"random / lqr, {_LIMITED}": ("attitude=!RandomAttitude", "tracking=!LqrTracking", _LIMIT),
 }
 
 # Per-run numbers kept: run_metrics keys plus the fraction of steady-state steps at the limit.
@@ -74,9 +81,9 @@ def run_variant(overrides: tuple[str, ...], seeds: Sequence[int]) -> np.ndarray:
     rows = []
     for seed in seeds:
         result = simulation.run(seed)
-        applied = np.linalg.norm(result.log["a_world"][scenario.steady_state_start :], axis=1)
+        applied = np.linalg.norm(result.log["u1_W"][scenario.steady_state_start :], axis=1)
         saturated = 0.0 if limit is None else float(np.mean(applied >= limit * (1 - 1e-12)))
-        q = result.log["p_uuv"] - result.log["p_target"]
+        q = result.log["p_WU"] - result.log["p_WT"]
         range_mean = float(np.mean(np.linalg.norm(q[scenario.steady_state_start :], axis=1)))
         metrics = {**result.metrics, "saturated_fraction": saturated, "range_mean": range_mean}
         rows.append([metrics[key] for key in _KEYS])
@@ -118,11 +125,7 @@ def plan_demand(scenario: Scenario) -> dict[str, float]:
     s, a = scenario, scenario.attitude
     b = np.asarray(s.sonar.baseline)
     q_star = np.asarray(s.tracking.desired_relative_position)
-    b_norm = float(np.linalg.norm(b))
-    R = [
-        minimal_rotation(b, zeta(k, b_norm, a.rho, a.h_amplitude, a.h_frequency))
-        for k in range(s.steps)
-    ]
+    R = [trajectory_attitude(k, b, a.rho, a.h_amplitude, a.h_frequency) for k in range(s.steps)]
     r = np.array([Ri @ q_star for Ri in R])
     t = s.time_step
     speed = np.linalg.norm(np.diff(r, axis=0), axis=1) / t
@@ -143,9 +146,10 @@ def speed_growth(mode: str, steps: int = 2000, block: int = 250) -> list[float]:
     """Mean relative speed of the paper's law per ``block`` steps of one long run (seed 0)."""
     from drake_uuv.simulation import ClosedLoopSimulation
 
-    scenario = load_scenario("paper", [f"attitude.mode={mode}", f"steps={steps}"])
+    tags = {"trajectory": "TrajectoryAttitude", "random": "RandomAttitude"}
+    scenario = load_scenario("paper", [f"attitude=!{tags[mode]}", f"steps={steps}"])
     log = ClosedLoopSimulation(scenario).run(0).log
-    speed = np.linalg.norm(log["v_uuv"] - log["v_target"], axis=1)
+    speed = np.linalg.norm(log["v_WU"] - log["v_WT"], axis=1)
     return [float(np.mean(speed[k : k + block])) for k in range(0, steps, block)]
 
 
@@ -173,7 +177,7 @@ def markdown(
 ) -> tuple[str, bool]:
     """The page and whether every acceptance check passed."""
     paper = load_scenario("paper")
-    lqr = load_scenario("paper", ["tracking.type=lqr"])
+    lqr = load_scenario("paper", ["tracking=!LqrTracking"])
     t = lqr.tracking
     out = [
         "# Tracking laws compared: the paper's §III-B law and the LQR law",
@@ -182,8 +186,8 @@ def markdown(
         f"seeds 0–{runs - 1}, the same seeds for every variant). Paper "
         f"scenario (t = {paper.time_step} s, {paper.steps} steps); every number is over the "
         f"steady-state window k ≥ {paper.steady_state_start}. LQR weights (the defaults): "
-        f"position {t.lqr_position_weight:g}, velocity {t.lqr_velocity_weight:g}, input "
-        f"{t.lqr_input_weight:g}; *{_LIMITED}* sets `tracking.max_acceleration: "
+        f"position {t.position_weight:g}, velocity {t.velocity_weight:g}, input "
+        f"{t.input_weight:g}; *{_LIMITED}* sets `tracking.max_acceleration: "
         f"{ACCELERATION_LIMIT:g}` (what a "
         "~31 kg hovering vehicle with 77.6 N thrusters manages).",
         "",
@@ -224,7 +228,7 @@ def markdown(
         out.append("")
 
     out += [
-        "## Acceptance (issue 6, paper scenario = Algorithm 2)",
+        "## Acceptance (paper scenario = Algorithm 2)",
         "",
         "Ratios lqr / paper over the same seeds, with 95 % paired-bootstrap intervals.",
         "",
@@ -259,14 +263,20 @@ def markdown(
     out.append("")
 
     demand = plan_demand(paper)
-    damping = _damping(eig_lqr := closed_loop_eigenvalues(lqr), paper.time_step)
+    t_lqr = lqr.tracking
+    K_lqr = lqr_gain(
+        lqr.time_step, t_lqr.position_weight, t_lqr.velocity_weight, t_lqr.input_weight
+    )
+    damping = _damping(eig_lqr := closed_loop_eigenvalues(lqr.time_step, K_lqr[0]), paper.time_step)
     frequency = _natural_frequency(eig_lqr, paper.time_step)
     growth = {mode: speed_growth(mode) for mode in ("trajectory", "random")}
-    eig_paper = closed_loop_eigenvalues(paper)
+    eig_paper = closed_loop_eigenvalues(
+        paper.time_step, paper_gain_matrix(paper.time_step, paper.tracking.alpha)
+    )
     out += [
         "## Closed-loop eigenvalues",
         "",
-        "Of A − BK on the relative double integrator (`closed_loop_eigenvalues(scenario)`; "
+        "Of A − BK on the relative double integrator (`closed_loop_eigenvalues(t, K)`; "
         "`tracking_spectral_radius` in metrics.json):",
         "",
         f"- paper law, α = {paper.tracking.alpha:g}: {_eigenvalue_text(eig_paper)} — spectral "

@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from results_sections import SECTIONS
 
 from drake_uuv.analysis.figures import (
     error_figure,
@@ -24,12 +25,19 @@ from drake_uuv.analysis.figures import (
     save_figure,
     trajectory_figure,
 )
-from drake_uuv.compare import compare, markdown_table, ratio_tables, selected_variants
 from drake_uuv.io import write_atomic, write_text_atomic
 from drake_uuv.metrics import errors
-from drake_uuv.montecarlo import Study, format_summary, run_study
 from drake_uuv.scenario import ALPHA_PROVEN_INTERVAL, load_scenario
 from drake_uuv.simulation import ClosedLoopSimulation
+from drake_uuv.studies import (
+    Study,
+    compare,
+    format_summary,
+    markdown_table,
+    ratio_tables,
+    run_study,
+    selected_variants,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 # The comparison groups this page discusses (drake-uuv compare --group ...).
@@ -42,8 +50,12 @@ def _figures(docs: Path) -> dict[str, float]:
     """The paper run's four figures, and the fixed/random contrast; returns a few numbers."""
     folder = docs / "figures"
     numbers: dict[str, float] = {}
-    for mode in ("trajectory", "random", "fixed"):
-        scenario = load_scenario("paper", [f"attitude.mode={mode}"])
+    for mode, tag in (
+        ("trajectory", "TrajectoryAttitude"),
+        ("random", "RandomAttitude"),
+        ("fixed", "FixedAttitude"),
+    ):
+        scenario = load_scenario("paper", [f"attitude=!{tag}"])
         log = ClosedLoopSimulation(scenario).run().log
         figures = {
             "errors": error_figure(log, scenario),
@@ -55,12 +67,12 @@ def _figures(docs: Path) -> dict[str, float]:
             q_star = np.asarray(scenario.tracking.desired_relative_position)
             kick = np.linalg.norm((log["R_WB"][:-1] - log["R_WB"][1:]) @ q_star, axis=1)
             numbers["rotation_kick"] = float(np.mean(kick))
-            turn = np.linalg.norm(log["u2"], axis=1) * scenario.time_step
+            turn = np.linalg.norm(log["u2_W"], axis=1) * scenario.time_step
             numbers["turn_mean_deg"] = float(np.degrees(np.mean(turn)))
             numbers["turn_max_deg"] = float(np.degrees(np.max(turn)))
         for stem, figure in figures.items():
             save_figure(figure, folder / f"{mode}_{stem}", formats=("png",))
-        low, _ = excitation_eigenvalues(log["q_s"], scenario.analysis.pe_window)
+        low, _ = excitation_eigenvalues(log["b_W"], scenario.analysis.pe_window)
         numbers[f"{mode}_lambda_min"] = float(np.min(low))
     return numbers
 
@@ -177,7 +189,7 @@ minimal rotation taking b to ζ(k) jumps when ζ passes near −b.
 ### 3. The noise model of Y — {noise_heading}
 
 A consistent filter has a mean NEES of 6 (6-D state). With the mean and variance derived in
-design.md §1 (`derived`) the mean NEES is {_ci(trajectory, "nees_mean")}; with the formula the
+the exact moments of its Y (`derived`) the mean NEES is {_ci(trajectory, "nees_mean")}; with the formula the
 paper prints (`paper_printed`) it is {_ci(printed, "nees_mean")}: the printed Γ {printed_effect}
 (its mean m = η1 + η2 is also a small bias where the derived mean ½(η1 − η2) is 0 here). Its
 position RMSE is {_g(printed["position_rmse"])} m against {_g(trajectory["position_rmse"])} m.
@@ -207,7 +219,7 @@ and with α (mean relative speed {_g(alphas[min(alphas)]["relative_speed_mean"])
 α = {min(alphas):g}, {_g(a12["relative_speed_mean"])} m/s at α = 1.2). The samples of the UUV
 position follow the target, but between samples the vehicle would have to move at these speeds:
 the law is not physically meaningful as it stands. A law that also regulates the relative
-velocity (LQR on the double integrator, issue 6) removes this.
+velocity (LQR on the double integrator, below) removes this.
 
 ### 5. The α interval — sufficient, not necessary
 
@@ -223,7 +235,7 @@ steeply with α (section 4).{cancellation}
 
 
 def _estimators(rows: dict[str, dict], ratios: str) -> str:
-    """Beyond the paper (issue 4): the raw-range filters and the PCRLB, with the ratio tables."""
+    """Beyond the paper: the raw-range filters and the PCRLB, with the ratio tables."""
     if "ekf-trajectory" not in rows or "kf-trajectory" not in rows:
         return ""
     ekf, kf = rows["ekf-trajectory"], rows["kf-trajectory"]
@@ -257,12 +269,12 @@ def _estimators(rows: dict[str, dict], ratios: str) -> str:
 The paper's Y = ½(d1² − d2²) keeps only the component of q along the baseline; the two raw
 ranges also carry the distance. The posterior Cramér–Rao bound (PCRLB) of the raw ranges with
 all f samples (Tichavský's recursion with the singular Q = B W Bᵀ handled in covariance form,
-`drake_uuv/estimators/pcrlb.py`) says how well any estimator can do. It depends on the true
+`drake_uuv/models/pcrlb.py`) says how well any estimator can do. It depends on the true
 trajectories, which in this closed loop depend on the estimator, so each variant's bound is
 computed on its own runs: the Monte Carlo bound averages the measurement information over
 runs and recurses once (the proven bound); the mean of the per-run bounds, each along its own
-trajectory, is what an estimator efficient on every run attains. `estimator.type: ekf` (and
-`iekf`) filters the raw ranges, started by the paper's linear KF until its covariance is small
+trajectory, is what an estimator efficient on every run attains. `estimator: !Ekf` (and
+`!Iekf`) filters the raw ranges, started by the paper's linear KF until its covariance is small
 enough to linearise (`drake_uuv/estimators/raw_range_filter.py`).
 
 On the paper scenario (Algorithm 2), steady-state RMSE over the bound, 95 % intervals:
@@ -277,17 +289,15 @@ information Y throws away. The EKF reaches the per-run bound, with a mean NEES o
 {_g(ekf["position_rmse_over_pcrlb"], ".2f")}× the proven bound in position because two ranges
 say nothing along q_s × q, and that blind direction differs from run to run: averaging the
 information over runs fills it, so the proven bound is below what any estimator reaches run
-by run (with the geometry made independent of the estimate, the two bounds coincide and the
-EKF attains them: `python -m drake_uuv.estimators._reference --control-from-truth`). The
-iterated EKF adds nothing at this noise level. With a fixed attitude no filter converges: the
-raw-range filters never leave their linear start and are the paper's KF.
+by run. The iterated EKF adds nothing at this noise level. With a fixed attitude no filter
+converges: the raw-range filters never leave their linear start and are the paper's KF.
 
 {ratios}
 """
 
 
 def _tracking(rows: dict[str, dict]) -> str:
-    """Beyond the paper (issue 6): the LQR law against the paper's, on the same seeds."""
+    """Beyond the paper: the LQR law against the paper's, on the same seeds."""
     if "trajectory-paper" not in rows or "trajectory-lqr" not in rows:
         return ""
     paper = rows["trajectory-paper"]
@@ -308,7 +318,7 @@ error contracts, the velocity flips sign every step and is never damped. With th
 numbers the vehicle needs a mean {_g(paper["acceleration_mean"])} m/s² (peak
 {_g(paper["acceleration_peak"])} m/s²) at relative speeds of {_g(paper["relative_speed_mean"])}
 m/s; a hovering vehicle of about 31 kg with 77.6 N thrusters manages about 7 m/s².
-`tracking.type: lqr` (gains from Drake's `DiscreteTimeLinearQuadraticRegulator` on the relative
+`tracking: !LqrTracking` (gains from Drake's `DiscreteTimeLinearQuadraticRegulator` on the relative
 double integrator, the attitude plan's turning reference fed forward, an optional
 `tracking.max_acceleration` without wind-up) holds the same relative position with motions a
 vehicle can make. Ratios lqr / paper on the paper scenario (Algorithm 2, same seeds):
@@ -391,6 +401,7 @@ percentile bootstrap over runs; fractions with Wilson intervals
 {_claims(rows, args.runs, numbers, speeds)}
 {_estimators(rows, ratio_tables([(variant, r.summary) for variant, r in compared]))}
 {_tracking(rows)}
+{"".join(section(args.work, args.docs, args.runs, execution) for section in SECTIONS)}
 ## Comparison tables
 
 {table}

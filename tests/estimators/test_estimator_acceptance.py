@@ -35,7 +35,7 @@ def _ratio_and_error(result, part: str, bound: float) -> tuple[float, float]:
 
 
 def test_ekf_through_the_diagram_is_within_1_1_of_the_pcrlb(ekf_study) -> None:
-    """Issue 4: the EKF's steady-state RMSE within 1.1× the PCRLB over 30 runs.
+    """The EKF's steady-state RMSE within 1.1× the PCRLB over 30 runs.
 
     Against the mean of the per-run bounds (what an estimator efficient on every trajectory
     attains) outright; against the proven Monte Carlo bound, which sits ~8 % lower in this
