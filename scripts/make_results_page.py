@@ -188,8 +188,8 @@ minimal rotation taking b to ζ(k) jumps when ζ passes near −b.
 
 ### 3. The noise model of Y — {noise_heading}
 
-A consistent filter has a mean NEES of 6 (6-D state). With the mean and variance derived in
-the exact moments of its Y (`derived`) the mean NEES is {_ci(trajectory, "nees_mean")}; with the formula the
+A consistent filter has a mean NEES of 6 (6-D state). With the exact mean and variance of the
+paper's Y (`derived`) the mean NEES is {_ci(trajectory, "nees_mean")}; with the formula the
 paper prints (`paper_printed`) it is {_ci(printed, "nees_mean")}: the printed Γ {printed_effect}
 (its mean m = η1 + η2 is also a small bias where the derived mean ½(η1 − η2) is 0 here). Its
 position RMSE is {_g(printed["position_rmse"])} m against {_g(trajectory["position_rmse"])} m.
