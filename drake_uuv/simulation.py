@@ -6,7 +6,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from pydrake.common import RandomGenerator
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context
@@ -132,7 +131,7 @@ class ClosedLoopSimulation:
             configure(simulator)
         simulator.set_target_realtime_rate(realtime_rate)
         context = simulator.get_mutable_context()
-        self.diagram.SetRandomContext(context, RandomGenerator(scenario.random_seed))
+        self.built.set_random_context(context, scenario.random_seed)
         self.monitor.reset()
         simulator.set_monitor(self.monitor)
         try:

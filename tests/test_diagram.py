@@ -95,3 +95,17 @@ def test_random_ports_of_a_variant_get_their_own_source() -> None:
     built = make_uuv_diagram(load_scenario("paper", ["attitude=!RandomAttitude"]))
     assert built.diagram.HasSubsystemNamed("rotation_noise")
     assert built.diagram.HasSubsystemNamed("rotation_noise_hold")
+
+
+def test_set_random_context_latches_the_first_draw_and_reproduces_a_run(paper) -> None:
+    """Step 0's noise is the seeded first draw (not the hold's zero), and a seed fixes it."""
+    built = make_uuv_diagram(paper)
+    context = built.diagram.CreateDefaultContext()
+    draws = []
+    for seed in (5, 5, 6):
+        built.set_random_context(context, seed)
+        hold = built.diagram.GetSubsystemByName("range_noise_hold")
+        draws.append(hold.get_output_port().Eval(hold.GetMyContextFromRoot(context)).copy())
+    assert np.all(draws[0] != 0.0)
+    np.testing.assert_array_equal(draws[0], draws[1])
+    assert not np.array_equal(draws[0], draws[2])

@@ -1,7 +1,6 @@
-"""Small framework blocks used by the diagram builder."""
+"""Small pieces the systems and the builder share: random input ports, the signal type."""
 
-from drake_uuv.primitives.noise_hold import NoiseHold
 from drake_uuv.primitives.random_input import declare_random_input, random_inputs
 from drake_uuv.primitives.signal import Signal
 
-__all__ = ["NoiseHold", "Signal", "declare_random_input", "random_inputs"]
+__all__ = ["Signal", "declare_random_input", "random_inputs"]
