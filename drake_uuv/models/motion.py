@@ -20,6 +20,15 @@ def double_integrator(time_step: float) -> tuple[np.ndarray, np.ndarray]:
     return A, B
 
 
+def double_integrator_step(
+    p: np.ndarray, v: np.ndarray, a: np.ndarray, time_step: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(p(k+1), v(k+1))`` of ``X(k+1) = A X(k) + B a``, without forming ``X``, ``A`` or ``B``:
+    ``p + t v + ½t² a`` and ``v + t a`` (the same numbers as the matrix form, to the bit)."""
+    t = time_step
+    return p + t * v + (0.5 * t * t) * a, v + t * a
+
+
 def process_noise_covariance(W: np.ndarray, time_step: float) -> np.ndarray:
     """``Q = B W Bᵀ`` (6×6, rank 3) for the target's acceleration covariance ``W`` (3×3)."""
     _, B = double_integrator(time_step)

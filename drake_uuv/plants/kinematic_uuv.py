@@ -6,7 +6,7 @@ import numpy as np
 from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from drake_uuv.models.motion import double_integrator
+from drake_uuv.models.motion import double_integrator_step
 from drake_uuv.models.so3 import exp_so3
 from drake_uuv.scenario import Scenario
 
@@ -50,7 +50,6 @@ class KinematicUuvPlant(LeafSystem):
     ) -> None:
         super().__init__()
         self._time_step = float(time_step)
-        self._A, self._B = double_integrator(self._time_step)
         self._u1_port = self.DeclareVectorInputPort("u1_B", 3)
         self._u2_port = self.DeclareVectorInputPort("u2_W", 3)
         self._p_index = self.DeclareDiscreteState(np.asarray(initial_position, dtype=float))
@@ -73,17 +72,14 @@ class KinematicUuvPlant(LeafSystem):
         )
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        x = np.concatenate(
-            [
-                context.get_discrete_state(self._p_index).get_value(),
-                context.get_discrete_state(self._v_index).get_value(),
-            ]
-        )
-        R = context.get_discrete_state(self._R_index).get_value().reshape(3, 3)
+        state = context.get_discrete_state()
+        R = state.value(self._R_index).reshape(3, 3)
         a_W = R @ self._u1_port.Eval(context)
+        p, v = double_integrator_step(
+            state.value(self._p_index), state.value(self._v_index), a_W, self._time_step
+        )
         R_next = exp_so3(self._u2_port.Eval(context) * self._time_step) @ R
         R_next = 1.5 * R_next - 0.5 * (R_next @ (R_next.T @ R_next))
-        x_next = self._A @ x + self._B @ a_W
-        discrete_state.set_value(self._p_index, x_next[:3])
-        discrete_state.set_value(self._v_index, x_next[3:])
+        discrete_state.set_value(self._p_index, p)
+        discrete_state.set_value(self._v_index, v)
         discrete_state.set_value(self._R_index, R_next.ravel())

@@ -6,7 +6,7 @@ import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from drake_uuv.models.motion import double_integrator
+from drake_uuv.models.motion import double_integrator_step
 from drake_uuv.primitives.random_input import declare_random_input
 from drake_uuv.scenario import Scenario
 
@@ -39,7 +39,7 @@ class TargetRandomWalk(LeafSystem):
         initial_velocity: np.ndarray,
     ) -> None:
         super().__init__()
-        self._A, self._B = double_integrator(time_step)
+        self._time_step = float(time_step)
         self._L = np.linalg.cholesky(np.asarray(acceleration_covariance, dtype=float))
         self._noise_port = declare_random_input(
             self, "acceleration_noise", 3, RandomDistribution.kGaussian
@@ -62,13 +62,10 @@ class TargetRandomWalk(LeafSystem):
         )
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        x = np.concatenate(
-            [
-                context.get_discrete_state(self._p_index).get_value(),
-                context.get_discrete_state(self._v_index).get_value(),
-            ]
-        )
+        state = context.get_discrete_state()
         acceleration = self._L @ self._noise_port.Eval(context)
-        x_next = self._A @ x + self._B @ acceleration
-        discrete_state.set_value(self._p_index, x_next[:3])
-        discrete_state.set_value(self._v_index, x_next[3:])
+        p, v = double_integrator_step(
+            state.value(self._p_index), state.value(self._v_index), acceleration, self._time_step
+        )
+        discrete_state.set_value(self._p_index, p)
+        discrete_state.set_value(self._v_index, v)

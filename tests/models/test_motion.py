@@ -3,7 +3,11 @@
 import numpy as np
 import pytest
 
-from drake_uuv.models.motion import double_integrator, process_noise_covariance
+from drake_uuv.models.motion import (
+    double_integrator,
+    double_integrator_step,
+    process_noise_covariance,
+)
 
 
 def test_double_integrator_closed_form() -> None:
@@ -38,3 +42,14 @@ def test_process_noise_is_b_w_bt_and_rank_three() -> None:
     np.testing.assert_allclose(Q[:3, :3], 0.5**4 / 4 * W)
     np.testing.assert_allclose(Q[:3, 3:], 0.5**3 / 2 * W)
     np.testing.assert_allclose(Q[3:, 3:], 0.5**2 * W)
+
+
+def test_the_step_without_matrices_is_the_matrix_form_to_the_bit() -> None:
+    """The plant and the target step with ``double_integrator_step``; the filter with A and B."""
+    rng = np.random.default_rng(0)
+    A, B = double_integrator(0.5)
+    for _ in range(2000):
+        p, v, a = (rng.normal(size=3) * scale for scale in rng.uniform(0, 100, size=3))
+        x = A @ np.concatenate([p, v]) + B @ a
+        p_next, v_next = double_integrator_step(p, v, a, 0.5)
+        np.testing.assert_array_equal(np.concatenate([p_next, v_next]), x)
