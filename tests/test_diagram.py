@@ -109,3 +109,9 @@ def test_set_random_context_latches_the_first_draw_and_reproduces_a_run(paper) -
     assert np.all(draws[0] != 0.0)
     np.testing.assert_array_equal(draws[0], draws[1])
     assert not np.array_equal(draws[0], draws[2])
+
+
+def test_a_variant_missing_from_its_factory_is_named(paper, monkeypatch) -> None:
+    monkeypatch.delitem(PLANTS, KinematicUuv)
+    with pytest.raises(TypeError, match=r"^plant: no system for !KinematicUuv in the slot's factory"):
+        make_uuv_diagram(paper)

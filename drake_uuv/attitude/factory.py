@@ -6,6 +6,7 @@ from drake_uuv.attitude.base import AttitudeGenerator
 from drake_uuv.attitude.fixed_attitude import FixedAttitudeGenerator
 from drake_uuv.attitude.random_attitude import RandomAttitudeGenerator
 from drake_uuv.attitude.trajectory_attitude import TrajectoryAttitudeGenerator
+from drake_uuv.primitives.variant_table import build_variant
 from drake_uuv.scenario import FixedAttitude, RandomAttitude, Scenario, TrajectoryAttitude
 
 #: Variant dataclass → the constructor of its system from a scenario.
@@ -18,7 +19,4 @@ ATTITUDE_GENERATORS: dict[type, Callable[[Scenario], AttitudeGenerator]] = {
 
 def make_attitude_generator(scenario: Scenario) -> AttitudeGenerator:
     """The attitude generator of ``scenario.attitude``'s variant."""
-    make = ATTITUDE_GENERATORS.get(type(scenario.attitude))
-    if make is None:
-        raise TypeError(f"attitude: no system for !{type(scenario.attitude).__name__}")
-    return make(scenario)
+    return build_variant(ATTITUDE_GENERATORS, scenario, "attitude")

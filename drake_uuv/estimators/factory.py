@@ -5,6 +5,7 @@ from collections.abc import Callable
 from drake_uuv.estimators.base import RelativeStateEstimator
 from drake_uuv.estimators.kalman_filter import RangeDifferenceKalmanFilter
 from drake_uuv.estimators.raw_range_filter import RawRangeEstimator
+from drake_uuv.primitives.variant_table import build_variant
 from drake_uuv.scenario import Ekf, Iekf, PaperKf, Scenario
 
 #: Variant dataclass → the constructor of its system from a scenario.
@@ -17,7 +18,4 @@ ESTIMATORS: dict[type, Callable[[Scenario], RelativeStateEstimator]] = {
 
 def make_estimator(scenario: Scenario) -> RelativeStateEstimator:
     """The estimator of ``scenario.estimator``'s variant."""
-    make = ESTIMATORS.get(type(scenario.estimator))
-    if make is None:
-        raise TypeError(f"estimator: no system for !{type(scenario.estimator).__name__}")
-    return make(scenario)
+    return build_variant(ESTIMATORS, scenario, "estimator")

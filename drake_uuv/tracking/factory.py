@@ -4,6 +4,7 @@ from collections.abc import Callable
 
 from pydrake.systems.framework import LeafSystem
 
+from drake_uuv.primitives.variant_table import build_variant
 from drake_uuv.scenario import LqrTracking, PaperTracking, Scenario
 from drake_uuv.tracking.lqr_tracking import LqrTrackingController
 from drake_uuv.tracking.paper_tracking import PaperTrackingController
@@ -17,7 +18,4 @@ TRACKING_CONTROLLERS: dict[type, Callable[[Scenario], LeafSystem]] = {
 
 def make_tracking_controller(scenario: Scenario) -> LeafSystem:
     """The tracking controller of ``scenario.tracking``'s variant."""
-    make = TRACKING_CONTROLLERS.get(type(scenario.tracking))
-    if make is None:
-        raise TypeError(f"tracking: no system for !{type(scenario.tracking).__name__}")
-    return make(scenario)
+    return build_variant(TRACKING_CONTROLLERS, scenario, "tracking")
