@@ -65,7 +65,8 @@ class InformationSeekingAttitude(LeafSystem):
         - R_WB_plan
 
     - ``R_WB`` (9, row-major): the current attitude ``R(k)``.
-    - ``x_TU_hat`` (6): the filtered relative state ``[q̂, ϑ̂]`` at k (world frame, ``q = p_WU − p_WT``).
+    - ``x_TU_hat`` (6): the filtered relative state ``[q̂, ϑ̂]`` at k (world frame,
+      ``q = p_WU − p_WT``).
     - ``P_TU`` (36): its covariance ``P(k|k)``, row-major.
     - ``u2_W`` (3): the angular velocity command [rad/s], world frame.
     - ``R_WB_plan`` (18): the planned ``R(k+1)`` and ``R(k+2)``, each row-major.
