@@ -51,7 +51,8 @@ class InformationSeekingAttitude(LeafSystem):
     Discrete state, updated at the tick: group 0, the world baselines ``q_s`` of the last
     ``N − 2`` steps up to k (oldest first, ``N = pe_window``) followed by how many are filled;
     group 1, ``R(k)`` row-major followed by 1 once it is set (``R(k−1)`` for the next step's
-    reference limit).
+    reference limit); group 2, 1 once a raw-range estimator has left its linear start (the
+    planner's mirror of its hand-over, from ``P_TU``; the hand-over is one-way).
 
     .. pydrake_system::
 
@@ -84,6 +85,7 @@ class InformationSeekingAttitude(LeafSystem):
         self._covariance_port = self.DeclareVectorInputPort("P_TU", 36)
         self._history_index = self.DeclareDiscreteState(3 * self._history + 1)
         self._previous_index = self.DeclareDiscreteState(10)
+        self._handed_over_index = self.DeclareDiscreteState(1)
         self._step = self.DeclareCacheEntry(
             "plan of step k",
             ValueProducer(allocate=AbstractValue.Make(object()).Clone, calc=self._calc_step),
@@ -112,6 +114,16 @@ class InformationSeekingAttitude(LeafSystem):
         """The discrete-state group ``[R(k) row-major, set]``."""
         return self._previous_index
 
+    def handed_over_state_index(self) -> int:
+        """The discrete-state group ``[1 once the raw-range filter left its linear start]``."""
+        return self._handed_over_index
+
+    def _linear_start(self, context: Context, P: np.ndarray) -> bool:
+        """Whether the estimator's update at k+1 is still its linear start's (mirrored)."""
+        if context.get_discrete_state(self._handed_over_index).get_value()[0] > 0.0:
+            return False
+        return not self._planner.hands_over(P)
+
     def _stored(self, context: Context) -> tuple[np.ndarray, np.ndarray | None]:
         """``(previous baselines (m×3, oldest first), R(k−1) or None)`` from the state."""
         state = context.get_discrete_state(self._history_index).get_value()
@@ -129,7 +141,8 @@ class InformationSeekingAttitude(LeafSystem):
     def _calc_step(self, context: Context, value: AbstractValue) -> None:
         R_WB, x_hat, P = self._inputs(context)
         history, R_previous = self._stored(context)
-        value.set_value(self._planner.plan(x_hat, P, R_WB, history, R_previous))
+        linear = self._linear_start(context, P)
+        value.set_value(self._planner.plan(x_hat, P, R_WB, history, R_previous, linear))
 
     def _calc_next(self, context: Context, value: AbstractValue) -> None:
         step: PlanStep = self._step.Eval(context)
@@ -138,7 +151,10 @@ class InformationSeekingAttitude(LeafSystem):
         history = np.vstack([history, R_WB @ self._planner.baseline_B])[-self._history :]
         if self._planner.position_prediction == "coast":
             x_hat = self._planner.A @ x_hat
-        value.set_value(self._planner.plan(x_hat, step.P_next, step.R_next, history, R_WB))
+        linear = self._linear_start(context, step.P_next) and self._linear_start(
+            context, self._inputs(context)[2]
+        )
+        value.set_value(self._planner.plan(x_hat, step.P_next, step.R_next, history, R_WB, linear))
 
     def _calc_rate(self, context: Context, output: BasicVector) -> None:
         step: PlanStep = self._step.Eval(context)
@@ -156,3 +172,7 @@ class InformationSeekingAttitude(LeafSystem):
         filled = min(int(state[-1]) + 1, self._history)
         discrete_state.set_value(self._history_index, np.append(history, filled))
         discrete_state.set_value(self._previous_index, np.append(R_WB.ravel(), 1.0))
+        P = self._covariance_port.Eval(context).reshape(6, 6)
+        discrete_state.set_value(
+            self._handed_over_index, [0.0 if self._linear_start(context, P) else 1.0]
+        )

@@ -37,6 +37,11 @@ The information of one measurement
 * ``ranges`` (the raw-range EKF and IEKF): the two rows ``range_jacobian`` (unit lines of
   sight from each sonar) with ``R = diag(η/f)``. A baseline along the line of sight makes
   the two rows parallel (range only); one across it adds the bearing along the baseline.
+  These filters start as the paper's KF on the sample means until ``trace P_qq`` falls to
+  their hand-over threshold; the planner mirrors that from ``P_TU`` alone
+  (:meth:`InformationSeekingPlanner.hands_over`) and plans for ``Y`` (variances ``η/f``)
+  until then: planning for ranges during the start slowed it (it never ends when the KF's
+  own covariance stays above the threshold, as at 0.1 rad per step).
 
 Both need a relative position at k+1. The filter's own prediction ``A x̂ + B u1_W`` is out
 of reach: ``u1_W`` comes from a tracking law that reads this planner's plan (an algebraic
@@ -93,9 +98,11 @@ windows of 24 fell to 0.78 m² (A-optimal) and 0.089 m² (E-optimal) in the Ricc
 share of it). The shorter window meets a shortfall ``pe_lead`` steps before a full one would
 suffer it: turning the baseline a quarter-turn takes 16 steps at 0.1 rad. When no candidate
 is admissible the planner turns toward the least excited direction, maximising
-``x_cᵀ (Λ + εI)⁻¹ x_c``. With ``pe_lead = 6`` the floor held in every window of 20 runs of
-600 steps on random estimates at every budget from 0.1 to π/2 (smallest 1.10 m²); with
-``pe_lead = 2`` it did not (0.53 m² at 0.1 rad). Below 0.1 rad per step it is not promised.
+``x_cᵀ (Λ + εI)⁻¹ x_c``. So the first steps explore: while the window holds a few baselines
+close together its Gramian is nearly singular and no candidate meets even its share. With
+``pe_lead = 6`` the floor held in every window of 20 runs of 600 steps on random estimates
+at every budget from 0.1 to π/2 (smallest 1.10 m²); with ``pe_lead = 2`` it did not
+(0.53 m² at 0.1 rad). Below 0.1 rad per step it is not promised.
 
 Reference feasibility
 ---------------------
@@ -333,6 +340,8 @@ class InformationSeekingPlanner:
     ``pe_lead`` (the floor is enforced on the trailing ``N − pe_lead`` steps);
     ``desired_relative_position`` q* (3, body frame) and ``max_reference_acceleration``
     [m/s²] (None: no limit); ``position_prediction`` and ``reference_lag`` (0 or 1);
+    ``linear_start_position_variance`` [m²], the raw-range filter's hand-over threshold (None:
+    it has no linear start; ignored for ``range_difference``);
     ``grid_rings`` of the cap grid and ``ball_rings`` of the ball grid.
     ``max_angle_per_step`` defaults to 0.39 rad, about Algorithm 2's mean rotation per step
     in the paper scenario (0.381 rad over 500 steps).
@@ -357,6 +366,7 @@ class InformationSeekingPlanner:
         max_reference_acceleration: float | None = None,
         position_prediction: str = "hold",
         reference_lag: int = 0,
+        linear_start_position_variance: float | None = None,
         grid_rings: int = 6,
         ball_rings: int = 4,
     ) -> None:
@@ -414,6 +424,13 @@ class InformationSeekingPlanner:
             raise ValueError(
                 "desired_relative_position: needed with position_prediction='reference', got None"
             )
+        if linear_start_position_variance is not None and not (
+            math.isfinite(linear_start_position_variance) and linear_start_position_variance > 0
+        ):
+            raise ValueError(
+                "linear_start_position_variance: must be > 0 or None, got "
+                f"{linear_start_position_variance!r}"
+            )
         if reference_lag not in (0, 1):
             raise ValueError(f"reference_lag: must be 0 or 1, got {reference_lag!r}")
         for name, value in (("grid_rings", grid_rings), ("ball_rings", ball_rings)):
@@ -443,6 +460,11 @@ class InformationSeekingPlanner:
         self.max_reference_acceleration = max_reference_acceleration
         self.position_prediction = position_prediction
         self.reference_lag = int(reference_lag)
+        self.linear_start_position_variance = (
+            None
+            if measurement_model != "ranges" or linear_start_position_variance is None
+            else float(linear_start_position_variance)
+        )
         # With a lagged reference the first measurement does not see the candidate's twist.
         self.scored_horizon = (
             max(self.horizon, 1 + self.reference_lag)
@@ -471,12 +493,24 @@ class InformationSeekingPlanner:
         return np.matmul(np.matmul(self.A, P), self.A.T) + self.Q
 
     def measurement_rows(
-        self, q: np.ndarray, baselines: np.ndarray
+        self, q: np.ndarray, baselines: np.ndarray, linear_start: bool = False
     ) -> tuple[np.ndarray, np.ndarray]:
-        """``(H, R)`` of the planned-for measurement model at position ``q`` per baseline."""
+        """``(H, R)`` of the planned-for measurement model at position ``q`` per baseline.
+
+        ``linear_start``: the raw-range filter's start, the paper's ``Y`` formed from the
+        per-sonar sample means (noise variances ``η/f``).
+        """
         if self.measurement_model == "range_difference":
             return range_difference_rows(q, baselines, self.noise_variances)
+        if linear_start:
+            return range_difference_rows(q, baselines, self.noise_variances / self.samples_per_step)
         return range_rows(q, baselines, self.noise_variances, self.samples_per_step)
+
+    def hands_over(self, P: np.ndarray) -> bool:
+        """Whether a raw-range filter whose filtered covariance is ``P`` leaves its linear
+        start (``trace P_qq ≤ linear_start_position_variance``), as its hand-over policy does."""
+        threshold = self.linear_start_position_variance
+        return threshold is None or float(np.trace(np.asarray(P)[:3, :3])) <= threshold
 
     def predicted_positions(
         self, j: int, x_hat: np.ndarray, rotation: np.ndarray, R_WB: np.ndarray
@@ -506,13 +540,19 @@ class InformationSeekingPlanner:
         return self._cap_rotations_z @ _frame(R_WB @ self.baseline_B / self.baseline_norm).T
 
     def horizon_scores(
-        self, x_hat: np.ndarray, P: np.ndarray, R_WB: np.ndarray, rotation: np.ndarray
+        self,
+        x_hat: np.ndarray,
+        P: np.ndarray,
+        R_WB: np.ndarray,
+        rotation: np.ndarray,
+        linear_start: bool = False,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Summed criterion over the horizon, and ``P(k+1|k+1)``, for each candidate.
 
         ``x_hat``, ``P`` are the filtered ``x̂(k|k)``, ``P(k|k)``; ``R_WB`` is ``R(k)``;
         ``rotation`` (n×3) the candidates' rotation vectors, each repeated every step of the
-        horizon (``R(k+j) = Exp(j φ) R(k)``).
+        horizon (``R(k+j) = Exp(j φ) R(k)``); ``linear_start`` as in :meth:`measurement_rows`,
+        for the whole horizon.
         """
         baseline = R_WB @ self.baseline_B
         x_hat = np.asarray(x_hat, dtype=float)
@@ -521,7 +561,7 @@ class InformationSeekingPlanner:
         first = posterior
         for j in range(1, self.scored_horizon + 1):
             q = self.predicted_positions(j, x_hat, rotation, R_WB)
-            H, R = self.measurement_rows(q, rotate_vectors(j * rotation, baseline))
+            H, R = self.measurement_rows(q, rotate_vectors(j * rotation, baseline), linear_start)
             posterior = posterior_covariances(self.predict_covariance(posterior), H, R)
             if j == 1:
                 first = posterior
@@ -535,19 +575,21 @@ class InformationSeekingPlanner:
         R_WB: np.ndarray,
         previous_baselines: np.ndarray,
         R_previous: np.ndarray | None = None,
+        linear_start: bool = False,
     ) -> PlanStep:
         """The next attitude from the filtered estimate at step k.
 
         ``x_hat`` (6) and ``P`` (6×6) are ``x̂(k|k)``, ``P(k|k)``; ``R_WB`` is ``R(k)``;
         ``previous_baselines`` (m×3, oldest first, at most :attr:`history_length` used) are the
         world baselines ``q_s`` of the steps before k; ``R_previous`` is ``R(k−1)`` (None at
-        the first step), used only for the reference limit.
+        the first step), used only for the reference limit; ``linear_start`` says that the
+        raw-range filter's next update is still its linear start's (see :meth:`hands_over`).
         """
         R_WB = np.asarray(R_WB, dtype=float).reshape(3, 3)
         baseline = R_WB @ self.baseline_B
         rotation = self.candidate_rotations(R_WB)
         baselines = rotate_vectors(rotation, baseline)
-        scores, posteriors = self.horizon_scores(x_hat, P, R_WB, rotation)
+        scores, posteriors = self.horizon_scores(x_hat, P, R_WB, rotation, linear_start)
         admissible = np.ones(len(rotation), dtype=bool)
         objective = scores
 

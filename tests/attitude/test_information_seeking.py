@@ -50,9 +50,10 @@ def test_ports_and_sizes() -> None:
     assert inputs == {"R_WB": 9, "x_TU_hat": 6, "P_TU": 36}
     assert outputs == {"u2_W": 3, "R_WB_plan": 18}
     context = system.CreateDefaultContext()
-    assert context.num_discrete_state_groups() == 2
+    assert context.num_discrete_state_groups() == 3
     assert context.get_discrete_state(0).size() == 3 * 22 + 1
     assert context.get_discrete_state(1).size() == 10
+    assert context.get_discrete_state(2).size() == 1
     with pytest.raises(ValueError, match="planner: must be an InformationSeekingPlanner, got 'kf'"):
         InformationSeekingAttitude("kf")
 
@@ -93,6 +94,45 @@ def test_update_shifts_the_baseline_history_and_keeps_the_attitude() -> None:
     assert_allclose(history[:63], np.arange(3.0, 66.0))
     assert_allclose(history[63:66], R0 @ B)
     assert history[-1] == 22
+
+
+def test_linear_start_is_mirrored_one_way() -> None:
+    """For a raw-range estimator the planner plans for the paper's ``Y`` until the filtered
+    ``trace P_qq`` reaches the hand-over threshold, then for the ranges, for good."""
+    threshold = 0.5
+    ranges = InformationSeekingAttitude(
+        planner(measurement_model="ranges", linear_start_position_variance=threshold)
+    )
+    linear = InformationSeekingAttitude(
+        InformationSeekingPlanner(T, B, W, ETA, desired_relative_position=Q_STAR)
+    )
+    # Least known along the line of sight: Y would measure it, the ranges already do (trace
+    # P_qq 1.2 m² and 0.3 m²).
+    wide, narrow = 0.4 * np.eye(6), 0.1 * np.eye(6)
+    sight = X_HAT[:3] / np.linalg.norm(X_HAT[:3])
+    wide[:3, :3] = 0.1 * np.eye(3) + 0.9 * np.outer(sight, sight)
+
+    # A history that excites every direction, so that the floor leaves the choice free.
+    history = np.sqrt(2.0) * np.tile(np.eye(3), (8, 1))[:22]
+
+    def plan(system, P, handed_over=0.0):
+        context = context_for(system, P=P)
+        context.get_mutable_discrete_state(0).SetFromVector(np.append(history.ravel(), 22))
+        context.get_mutable_discrete_state(2).SetFromVector([handed_over])
+        return system.GetOutputPort("R_WB_plan").Eval(context)[:9], context
+
+    before, context = plan(ranges, wide)
+    assert_allclose(before, plan(linear, wide)[0], atol=1e-14)
+    assert discrete_update(ranges, context, 2)[0] == 0.0
+    after, context = plan(ranges, narrow)
+    assert discrete_update(ranges, context, 2)[0] == 1.0
+    expected = ranges.planner.plan(X_HAT, narrow, R0, history)
+    assert_allclose(after, expected.R_next.ravel(), atol=1e-14)
+    # Once handed over, a wide covariance no longer brings the linear model back.
+    again, context = plan(ranges, wide, handed_over=1.0)
+    assert_allclose(again, ranges.planner.plan(X_HAT, wide, R0, history).R_next.ravel())
+    assert not np.allclose(again, before)
+    assert discrete_update(ranges, context, 2)[0] == 1.0
 
 
 def test_state_feeds_the_plan() -> None:

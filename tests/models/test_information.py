@@ -375,6 +375,26 @@ def test_reference_acceleration_limit_holds() -> None:
     assert (np.linalg.norm(free[2:] - 2 * free[1:-1] + free[:-2], axis=1) / T**2).max() > limit
 
 
+def test_linear_start_plans_for_the_papers_y_on_the_sample_means() -> None:
+    """A raw-range filter's linear start is the paper's KF on the means of f samples."""
+    rng = np.random.default_rng(18)
+    inputs = (
+        rng.normal(size=6),
+        random_spd(rng),
+        exp_so3(rng.normal(size=3)),
+        rng.normal(size=(22, 3)),
+    )
+    raw = InformationSeekingPlanner(
+        T, B, W, ETA, 2, measurement_model="ranges", linear_start_position_variance=0.5
+    )
+    linear = InformationSeekingPlanner(T, B, W, ETA / 2, 1)
+    assert_allclose(raw.plan(*inputs, linear_start=True).R_next, linear.plan(*inputs).R_next)
+    assert not np.allclose(raw.plan(*inputs).R_next, linear.plan(*inputs).R_next)
+    P = np.diag([0.15, 0.15, 0.15, 1.0, 1.0, 1.0])  # trace P_qq 0.45 m²
+    assert raw.hands_over(P) and not raw.hands_over(2.0 * P)
+    assert planner(linear_start_position_variance=0.5).hands_over(2.0 * P)  # a KF has no start
+
+
 def test_plan_is_reproducible() -> None:
     rng = np.random.default_rng(15)
     inputs = (
@@ -432,6 +452,7 @@ def test_reference_prediction_turns_the_target_with_the_body() -> None:
         ({"position_prediction": "guess"}, r"position_prediction: .*'guess'"),
         ({"reference_lag": 2}, r"reference_lag: must be 0 or 1, got 2"),
         ({"grid_rings": 0}, r"grid_rings: .*got 0"),
+        ({"linear_start_position_variance": 0.0}, r"linear_start_position_variance: .*got 0.0"),
     ],
 )
 def test_bad_parameters_name_the_parameter_and_the_value(options: dict, message: str) -> None:
