@@ -101,8 +101,8 @@ is admissible the planner turns toward the least excited direction, maximising
 ``x_cᵀ (Λ + εI)⁻¹ x_c``. So the first steps explore: while the window holds a few baselines
 close together its Gramian is nearly singular and no candidate meets even its share. With
 ``pe_lead = 6`` the floor held in every window of 20 runs of 600 steps on random estimates
-at every budget from 0.1 to π/2 (smallest 1.10 m²); with ``pe_lead = 2`` it did not
-(0.53 m² at 0.1 rad). Below 0.1 rad per step it is not promised.
+at every budget from 0.1 to π/2 (smallest 1.11 m²); with ``pe_lead = 2`` it did not
+(0.52 m² at 0.1 rad). Below 0.1 rad per step it is not promised.
 
 Reference feasibility
 ---------------------
