@@ -9,11 +9,9 @@ from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import LogVectorOutput, RandomSource, VectorLogSink
 
-from drake_uuv.attitude.information_seeking import InformationSeekingAttitude
 from drake_uuv.controllers import AttitudeGenerator, LqrTrackingController, TrackingController
 from drake_uuv.estimators import RangeDifferenceKalmanFilter, RawRangeEstimator
 from drake_uuv.estimators.filters_math import HandoverPolicy
-from drake_uuv.models.information import InformationSeekingPlanner
 from drake_uuv.plants import TargetRandomWalk, UuvPlant
 from drake_uuv.primitives import NoiseHold
 from drake_uuv.scenario import Scenario
@@ -95,51 +93,6 @@ def make_estimator(scenario: Scenario) -> LeafSystem:
     raise ValueError(f"estimator.type: unknown estimator, got {e.type!r}")
 
 
-def make_attitude_generator(scenario: Scenario) -> LeafSystem:
-    """The attitude generator named by ``attitude.mode``."""
-    a, t = scenario.attitude, scenario.time_step
-    if a.mode != "information":
-        return AttitudeGenerator(
-            a.mode,
-            t,
-            np.asarray(scenario.sonar.baseline),
-            a.rho,
-            a.h_amplitude,
-            a.h_frequency,
-            a.max_angular_rate,
-        )
-    raw = scenario.estimator.type != "kf"
-    prediction = a.position_prediction
-    if prediction == "auto":
-        prediction = "reference" if raw else "hold"
-    feedforward = scenario.tracking.type == "lqr" and scenario.tracking.lqr_feedforward
-    planner = InformationSeekingPlanner(
-        t,
-        np.asarray(scenario.sonar.baseline),
-        np.asarray(scenario.target.acceleration_covariance),
-        np.asarray(scenario.sonar.noise_variances),
-        scenario.sonar.samples_per_step,
-        measurement_model="ranges" if raw else "range_difference",
-        criterion=a.criterion,
-        block=a.block,
-        horizon=a.horizon,
-        max_angle_per_step=a.max_angle_per_step,
-        pe_window=scenario.analysis.pe_window,
-        excitation_floor=a.excitation_floor,
-        pe_lead=a.pe_lead,
-        desired_relative_position=np.asarray(scenario.tracking.desired_relative_position),
-        max_reference_acceleration=a.max_reference_acceleration,
-        position_prediction=prediction,
-        reference_lag=0 if feedforward else 1,
-        linear_start_position_variance=(
-            scenario.estimator.linear_start_position_variance
-            if raw and scenario.estimator.linear_start_max_steps != 0
-            else None
-        ),
-    )
-    return InformationSeekingAttitude(planner)
-
-
 def make_tracking_controller(scenario: Scenario) -> LeafSystem:
     """The tracking law named by ``tracking.type`` (``lqr`` also reads the attitude plan)."""
     c = scenario.tracking
@@ -199,7 +152,15 @@ def make_uuv_diagram(
             sonar_faults(scenario),
         ),
         "estimator": make_estimator(scenario),
-        "attitude_generator": make_attitude_generator(scenario),
+        "attitude_generator": AttitudeGenerator(
+            scenario.attitude.mode,
+            t,
+            np.asarray(scenario.sonar.baseline),
+            scenario.attitude.rho,
+            scenario.attitude.h_amplitude,
+            scenario.attitude.h_frequency,
+            scenario.attitude.max_angular_rate,
+        ),
         "tracking_controller": make_tracking_controller(scenario),
     }
     for name, system in systems.items():
@@ -229,11 +190,7 @@ def make_uuv_diagram(
         connect(attitude.GetOutputPort("R_WB_plan"), controller.GetInputPort("R_WB_plan"))
     connect(uuv.GetOutputPort("R_WB"), attitude.GetInputPort("R_WB"))
     connect(controller.GetOutputPort("u1_B"), uuv.GetInputPort("u1_B"))
-    rate_port = "u2_W" if attitude.HasOutputPort("u2_W") else "w_W"
-    connect(attitude.GetOutputPort(rate_port), uuv.GetInputPort("w_W"))
-    if attitude.HasInputPort("x_TU_hat"):  # the information-seeking planner
-        connect(estimator.GetOutputPort("x_hat"), attitude.GetInputPort("x_TU_hat"))
-        connect(estimator.GetOutputPort("P"), attitude.GetInputPort("P_TU"))
+    connect(attitude.GetOutputPort("w_W"), uuv.GetInputPort("w_W"))
 
     # Every random input port gets its own named, seeded source sampled once per step.
     random_ports = {
@@ -256,8 +213,6 @@ def make_uuv_diagram(
 
     loggers = {}
     for name, (system_name, port_name) in LOGGED_PORTS.items():
-        if name == "w_W":
-            port_name = rate_port
         logger = LogVectorOutput(systems[system_name].GetOutputPort(port_name), builder, t)
         logger.set_name(f"log_{name}")
         loggers[name] = logger

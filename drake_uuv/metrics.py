@@ -117,16 +117,7 @@ def run_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, flo
         "acceleration_peak": float(np.max(acceleration)),
         "tracking_spectral_radius": float(np.max(np.abs(closed_loop_eigenvalues(scenario)))),
         **bound_metrics(log, scenario),
-        **_attitude_metrics(log, scenario),
     }
-
-
-def _attitude_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, float]:
-    """Rotation per step, excitation and reference acceleration (imported here: the module
-    imports the figures, which import this one)."""
-    from drake_uuv.analysis.attitude_motion import attitude_metrics
-
-    return attitude_metrics(log, scenario)
 
 
 def bound_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, float]:

@@ -26,9 +26,7 @@ import yaml
 from pydrake.common.yaml import yaml_load_typed
 
 NOISE_MODELS = ("derived", "paper_printed")
-ATTITUDE_MODES = ("fixed", "random", "trajectory", "information")
-ATTITUDE_CRITERIA = ("d_optimal", "a_optimal", "e_optimal")
-ATTITUDE_PREDICTIONS = ("auto", "hold", "coast", "reference")
+ATTITUDE_MODES = ("fixed", "random", "trajectory")
 ESTIMATOR_TYPES = ("kf", "ekf", "iekf")
 TRACKING_TYPES = ("paper", "lqr")
 ALPHA_PROVEN_INTERVAL = (1.0 - 1.0 / math.sqrt(2.0), 1.0 + 1.0 / math.sqrt(2.0))
@@ -148,19 +146,6 @@ class AttitudeConfig:
     h_frequency: float = 1.0 / 6.0
     # Largest commanded |u2| [rad/s]; None means unlimited (the paper).
     max_angular_rate: float | None = None
-    # information (drake_uuv/models/information.py): rotation budget per step [rad], criterion,
-    # block ("position" or "full"), horizon, excitation floor [m²] on windows of
-    # analysis.pe_window steps enforced pe_lead steps early, reference acceleration limit
-    # [m/s²], assumed relative position ("auto": hold for kf; for ekf/iekf the turning
-    # reference, lagged one step unless tracking is lqr with feed-forward).
-    max_angle_per_step: float = 0.39
-    criterion: str = "a_optimal"
-    block: str = "position"
-    horizon: int = 1
-    excitation_floor: float = 1.0
-    pe_lead: int = 6
-    max_reference_acceleration: float | None = None
-    position_prediction: str = "auto"
 
 
 @dataclass
@@ -494,19 +479,3 @@ def validate_scenario(s: Scenario) -> None:
 
     if not 1 <= s.analysis.pe_window <= 10**6:
         _fail("analysis.pe_window", "must be in [1, 1e6]", s.analysis.pe_window)
-
-    a = s.attitude
-    if a.mode != "information":
-        return
-    if not (math.isfinite(a.max_angle_per_step) and 0.0 < a.max_angle_per_step <= math.pi):
-        _fail("attitude.max_angle_per_step", "must be in (0, π]", a.max_angle_per_step)
-    _choice("attitude.criterion", a.criterion, ATTITUDE_CRITERIA)
-    _choice("attitude.block", a.block, ("position", "full"))
-    _choice("attitude.position_prediction", a.position_prediction, ATTITUDE_PREDICTIONS)
-    if not 1 <= a.horizon <= 50:
-        _fail("attitude.horizon", "must be in [1, 50]", a.horizon)
-    _positive("attitude.excitation_floor", a.excitation_floor, strict=False)
-    if not 0 <= a.pe_lead <= s.analysis.pe_window - 3:
-        _fail("attitude.pe_lead", "must be in [0, analysis.pe_window − 3]", a.pe_lead)
-    if a.max_reference_acceleration is not None:
-        _positive("attitude.max_reference_acceleration", a.max_reference_acceleration)

@@ -63,5 +63,5 @@ def test_console_script_exit_status(tmp_path) -> None:
     )
     assert result.returncode == 2
     assert result.stderr.strip() == (
-        "drake-uuv: error: attitude.mode: must be one of fixed, random, trajectory, information, got 'bad'"
+        "drake-uuv: error: attitude.mode: must be one of fixed, random, trajectory, got 'bad'"
     )

@@ -66,7 +66,7 @@ def test_yaml_file_path(tmp_path) -> None:
         ("target.acceleration_covariance=[[1,0.5,0],[0,1,0],[0,0,1]]", r"^target.acceleration_covariance: must be symmetric"),
         ("target.acceleration_covariance=[[1,0],[0,1]]", r"^target.acceleration_covariance: must be a 3×3 matrix"),
         ("estimator.noise_model=exact", r"^estimator.noise_model: must be one of derived, paper_printed, got 'exact'"),
-        ("attitude.mode=spin", r"^attitude.mode: must be one of fixed, random, trajectory, information, got 'spin'"),
+        ("attitude.mode=spin", r"^attitude.mode: must be one of fixed, random, trajectory, got 'spin'"),
         ("attitude.max_angular_rate=0", r"^attitude.max_angular_rate: must be > 0, got 0.0"),
         ("tracking.alpha=1.8", r"^tracking.alpha: must be in \(0.2929, 1.7071\).*got 1.8"),
         ("tracking.alpha=0.2", r"^tracking.alpha: must be in \(0.2929, 1.7071\).*got 0.2"),
