@@ -2,6 +2,7 @@
 
 import numpy as np
 
+from drake_uuv.models.information import excitation_eigenvalues, rotation_angles
 from drake_uuv.models.measurement import VALID, range_difference_noise
 from drake_uuv.models.pcrlb import bound_rmse, measurement_information, pcrlb_recursion
 from drake_uuv.models.tracking_laws import desired_relative_positions
@@ -101,6 +102,7 @@ def run_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, flo
     - ``model_acceleration_rmse``: RMS of |(v(k+1) − v(k))/t − R u1(k)| [m/s²], how far the
       vehicle's motion is from the commanded acceleration that the filter takes as known
       (0 for the paper's kinematic vehicle).
+    - How the attitude moved and excited the baseline: :func:`attitude_metrics`.
     - For a vehicle that logs its attitude target and thrusts (``!HoveringAuv``):
       :func:`vehicle_metrics`.
     - ``pcrlb_position_rmse``, ``pcrlb_velocity_rmse``: √(mean over the window of the trace
@@ -123,8 +125,37 @@ def run_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, flo
         "acceleration_mean": float(np.mean(acceleration)),
         "acceleration_peak": float(np.max(acceleration)),
         "model_acceleration_rmse": model_acceleration_rmse(log, scenario),
+        **attitude_metrics(log, scenario),
         **vehicle_metrics(log, scenario),
         **bound_metrics(log, scenario),
+    }
+
+
+def attitude_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, float]:
+    """Rotation per step, excitation and reference acceleration over the whole run.
+
+    - ``rotation_mean``, ``rotation_peak`` [rad]: the angle of ``R(k+1) R(k)ᵀ`` over
+      k = 0..N−2 (a rotation budget applies from the first step, so no window).
+    - ``excitation_min`` [m²]: the smallest eigenvalue of ``Σ q_s q_sᵀ`` over every window
+      of ``analysis.pe_window`` steps (paper eq. 10), the minimum over the run.
+    - ``reference_acceleration_mean``, ``reference_acceleration_peak`` [m/s²]:
+      ``|r(k+1) − 2 r(k) + r(k−1)| / t²`` of the desired relative position ``r = R_WF q*``,
+      the acceleration that following it exactly asks of the vehicle.
+    """
+    R = log["R_WB"]
+    angles = rotation_angles(R)
+    low, _ = excitation_eigenvalues(log["b_W"], scenario.analysis.pe_window)
+    t = scenario.tracking
+    reference = desired_relative_positions(R, t.desired_relative_position, t.reference_frame)
+    second = reference[2:] - 2.0 * reference[1:-1] + reference[:-2]
+    acceleration = np.linalg.norm(second, axis=1) / scenario.time_step**2
+    nan = float("nan")
+    return {
+        "rotation_mean": float(np.mean(angles)) if len(angles) else nan,
+        "rotation_peak": float(np.max(angles)) if len(angles) else nan,
+        "excitation_min": float(np.min(low)) if len(low) else nan,
+        "reference_acceleration_mean": float(np.mean(acceleration)) if len(acceleration) else nan,
+        "reference_acceleration_peak": float(np.max(acceleration)) if len(acceleration) else nan,
     }
 
 

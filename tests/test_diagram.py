@@ -113,5 +113,7 @@ def test_set_random_context_latches_the_first_draw_and_reproduces_a_run(paper) -
 
 def test_a_variant_missing_from_its_factory_is_named(paper, monkeypatch) -> None:
     monkeypatch.delitem(PLANTS, KinematicUuv)
-    with pytest.raises(TypeError, match=r"^plant: no system for !KinematicUuv in the slot's factory"):
+    with pytest.raises(
+        TypeError, match=r"^plant: no system for !KinematicUuv in the slot's factory"
+    ):
         make_uuv_diagram(paper)

@@ -33,6 +33,7 @@ from drake_uuv.analysis.stats import nees_band  # noqa: E402
 from drake_uuv.analysis.vehicle_figures import attitude_tracking_figure, thrust_figure  # noqa: E402
 from drake_uuv.io import save_figure_atomic  # noqa: E402
 from drake_uuv.metrics import bound_covariances, errors  # noqa: E402
+from drake_uuv.models.information import excitation_eigenvalues  # noqa: E402
 from drake_uuv.scenario import Scenario, describe  # noqa: E402
 
 ESTIMATION_COLOR = "tab:red"
@@ -235,17 +236,6 @@ def _attitude_inset(axis, log: dict[str, np.ndarray], start: int, frames: int) -
     axis.set_axis_off()
     axis.view_init(elev=12, azim=-80)
     axis.set_title("UUV attitude R(k): body x, y, z (red, green, blue), s1–s2", fontsize=8)
-
-
-def excitation_eigenvalues(q_s: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
-    """λ_min and λ_max of Λ(k) = Σ_{m=k}^{k+N−1} q_s(m) q_s(m)ᵀ for k = 0..len − N."""
-    outer = q_s[:, :, np.newaxis] * q_s[:, np.newaxis, :]
-    if window > len(q_s):
-        return np.empty(0), np.empty(0)
-    cumulative = np.concatenate([np.zeros((1, 3, 3)), np.cumsum(outer, axis=0)])
-    sums = cumulative[window:] - cumulative[:-window]
-    eigenvalues = np.linalg.eigvalsh(sums)
-    return eigenvalues[:, 0], eigenvalues[:, -1]
 
 
 def excitation_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:

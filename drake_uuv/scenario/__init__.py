@@ -8,6 +8,7 @@ validates it; every error is a one-line :class:`ScenarioError` naming the field 
 from drake_uuv.scenario.attitude import (
     AttitudeConfig,
     FixedAttitude,
+    InformationSeeking,
     RandomAttitude,
     RateLimitedAttitude,
     TrajectoryAttitude,
@@ -65,6 +66,7 @@ __all__ = [
     "EstimatorOptions",
     "FixedAttitude",
     "HoveringAuv",
+    "InformationSeeking",
     "Iekf",
     "KinematicUuv",
     "LqrTracking",

@@ -4,11 +4,12 @@ The factory that builds the system of each variant is
 :func:`drake_uuv.attitude.make_attitude_generator`.
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from drake_uuv.scenario.validation import check_finite, check_positive
+from drake_uuv.scenario.validation import check_choice, check_finite, check_positive, fail
 
 
 @dataclass
@@ -52,5 +53,50 @@ class TrajectoryAttitude(RateLimitedAttitude):
             check_finite(f"{name}.{field_name}", np.asarray(value), value)
 
 
+@dataclass
+class InformationSeeking:
+    """Turns the baseline toward what the filter knows least: each step the attitude within a
+    rotation budget that maximises an information criterion of the next measurement(s),
+    under a floor on the excitation Gramian (see ``drake_uuv/models/information.py``)."""
+
+    # Rotation budget [rad] per step: the angle of R(k+1) R(k)ᵀ. 0.39 is about Algorithm 2's
+    # mean rotation per step in the paper scenario (0.381 rad over 500 steps).
+    max_angle_per_step: float = 0.39
+    # d_optimal (log det of the posterior information), a_optimal (trace of the posterior
+    # covariance, the default: trace P_qq is the squared position RMSE itself) or e_optimal
+    # (its largest eigenvalue, i.e. the smallest eigenvalue of the information).
+    criterion: str = "a_optimal"
+    # The block the criterion acts on: "position" (q) or "full" (q and ϑ).
+    block: str = "position"
+    # Steps of the receding horizon the criterion is summed over.
+    horizon: int = 1
+    # [m²] floor on the smallest eigenvalue of Σ q_s q_sᵀ over every window of
+    # analysis.pe_window steps (0: no floor), enforced pe_lead steps before a window closes.
+    excitation_floor: float = 1.0
+    pe_lead: int = 6
+    # [m/s²] limit on the acceleration of the turning reference R q* (None: no limit).
+    max_reference_acceleration: float | None = None
+    # Relative position the plan assumes for the next steps: "auto" ("hold" for the paper's
+    # KF, which needs none; "reference" for the raw-range filters, whose ranges depend on
+    # it: q follows R q*), "hold", "coast" or "reference".
+    position_prediction: str = "auto"
+
+    def validate(self, name: str) -> None:
+        budget = self.max_angle_per_step
+        if not (math.isfinite(budget) and 0.0 < budget <= math.pi):
+            fail(f"{name}.max_angle_per_step", "must be in (0, π]", budget)
+        check_choice(f"{name}.criterion", self.criterion, ("d_optimal", "a_optimal", "e_optimal"))
+        check_choice(f"{name}.block", self.block, ("position", "full"))
+        predictions = ("auto", "hold", "coast", "reference")
+        check_choice(f"{name}.position_prediction", self.position_prediction, predictions)
+        if not 1 <= self.horizon <= 50:
+            fail(f"{name}.horizon", "must be in [1, 50]", self.horizon)
+        check_positive(f"{name}.excitation_floor", self.excitation_floor, strict=False)
+        if self.pe_lead < 0:
+            fail(f"{name}.pe_lead", "must be ≥ 0", self.pe_lead)
+        if self.max_reference_acceleration is not None:
+            check_positive(f"{name}.max_reference_acceleration", self.max_reference_acceleration)
+
+
 #: The attitude slot. The first member is the default of an untagged section.
-AttitudeConfig = TrajectoryAttitude | RandomAttitude | FixedAttitude
+AttitudeConfig = TrajectoryAttitude | RandomAttitude | FixedAttitude | InformationSeeking

@@ -6,6 +6,7 @@ of :class:`EstimatorOptions`. The factory that builds the system of each variant
 """
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
@@ -28,6 +29,10 @@ def _identity(n: int) -> list[list[float]]:
 @dataclass
 class EstimatorOptions:
     """Fields every estimator has."""
+
+    #: The measurement an attitude planner scores for this estimator (not a field):
+    #: "range_difference" (the paper's Y) or "ranges" (the two raw ranges).
+    planning_measurement: ClassVar[str] = "range_difference"
 
     # Mean m and variance Γ of the noise of Y = ½(d1² − d2²). "derived": the exact moments of
     # the paper's Y, v̄ = d̄1 v1 − d̄2 v2 + ½(v1² − v2²) (mean ½(η1 − η2), variance
@@ -68,6 +73,8 @@ class PaperKf(EstimatorOptions):
 @dataclass
 class RawRangeOptions(EstimatorOptions):
     """Fields of the filters on the two raw ranges, which start as the paper's linear KF."""
+
+    planning_measurement: ClassVar[str] = "ranges"
 
     # The linear start hands over once trace(P_qq) ≤ linear_start_position_variance [m²], or
     # after linear_start_max_steps linear updates (None: no forced hand-over; 0: no linear

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from drake_uuv.scenario.attitude import AttitudeConfig, TrajectoryAttitude
+from drake_uuv.scenario.attitude import AttitudeConfig, InformationSeeking, TrajectoryAttitude
 from drake_uuv.scenario.estimators import EstimatorConfig, PaperKf
 from drake_uuv.scenario.plants import KinematicUuv, PlantConfig
 from drake_uuv.scenario.tracking import PaperTracking, TrackingConfig
@@ -157,6 +157,11 @@ class Scenario:
             )
         for name in SECTIONS:
             getattr(self, name).validate(name)
+        if isinstance(self.attitude, InformationSeeking):
+            window = self.analysis.pe_window
+            if not self.attitude.pe_lead <= window - 3:
+                fail("attitude.pe_lead", f"must be ≤ analysis.pe_window − 3 = {window - 3}",
+                     self.attitude.pe_lead)  # fmt: skip
 
 
 def describe(scenario: "Scenario") -> str:
