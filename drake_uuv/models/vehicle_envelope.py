@@ -26,7 +26,8 @@ for relative speeds beyond what the vehicle can swim.
 What the envelope cannot cover is the target: the paper's target is a velocity random walk
 whose speed grows as ``√(|v̄(0)|² + k t² tr W)`` (:func:`target_speed_rms`), and once it
 swims faster than the vehicle's top speed no configuration can hold station on it
-(:func:`target_speed_exceedance`).
+(:func:`target_speed_exceedance`). :func:`followable_target_scale` gives the factor on W of
+a target the vehicle can follow: one whose RMS speed at the end of the run is ``v_s``.
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ from drake_uuv.models.vehicle_limits import VehicleLimits, utilisation_budget, v
 __all__ = [
     "FeasibleLimits",
     "feasible_limits",
+    "followable_target_scale",
     "largest_acceleration",
     "plan_max_tilt",
     "target_speed_exceedance",
@@ -212,3 +214,24 @@ def target_speed_exceedance(
     velocity = v0 + np.concatenate([np.zeros((samples, 1, 3)), np.cumsum(increments, 1)], 1)
     fast = np.linalg.norm(velocity[:, start:], axis=2) > speed
     return float(np.mean(fast)), float(np.mean(np.any(fast, axis=1)))
+
+
+def followable_target_scale(
+    initial_velocity: np.ndarray,
+    acceleration_covariance: np.ndarray,
+    time_step: float,
+    steps: int,
+    speed: float,
+) -> float:
+    """The factor ``s`` on W for which the target's RMS speed at the last step ``steps − 1``
+    is ``speed``: ``s = (speed² − |v̄(0)|²) / ((steps − 1) t² tr W)`` (:func:`target_speed_rms`)."""
+    v0 = np.asarray(initial_velocity, dtype=float)
+    if not (math.isfinite(speed) and speed * speed > v0 @ v0):
+        raise ValueError(
+            f"speed: must exceed the target's initial speed {math.sqrt(v0 @ v0):.3g} m/s, "
+            f"got {speed!r}"
+        )
+    if steps < 2:
+        raise ValueError(f"steps: must be ≥ 2, got {steps!r}")
+    trace = float(np.trace(np.asarray(acceleration_covariance, dtype=float)))
+    return (speed * speed - v0 @ v0) / ((steps - 1) * time_step**2 * trace)

@@ -9,6 +9,7 @@ import pytest
 from drake_uuv.models.statistics import chi2_cdf
 from drake_uuv.models.vehicle_envelope import (
     feasible_limits,
+    followable_target_scale,
     largest_acceleration,
     plan_max_tilt,
     target_speed_exceedance,
@@ -180,3 +181,15 @@ def test_target_speed_exceedance_against_the_chi_square_law() -> None:
     # From rest, step 0 is never faster than 0; every later step is.
     assert target_speed_exceedance(np.zeros(3), np.eye(3), t, 10, 0, 0.0, 50) == (0.9, 1.0)
     assert target_speed_exceedance(np.zeros(3), np.eye(3), t, 10, 0, 1e6, 50) == (0.0, 0.0)
+
+
+def test_followable_target_scale_sets_the_final_rms_speed(paper) -> None:
+    target = paper.target
+    W = np.asarray(target.acceleration_covariance)
+    scale = followable_target_scale(target.initial_velocity, W, 0.5, 500, 0.38)
+    assert 0.0 < scale < 1.0
+    assert target_speed_rms(target.initial_velocity, scale * W, 0.5, 499) == pytest.approx(0.38)
+    with pytest.raises(ValueError, match=r"speed: must exceed the target's initial speed 0.143"):
+        followable_target_scale(target.initial_velocity, W, 0.5, 500, 0.1)
+    with pytest.raises(ValueError, match=r"steps: must be ≥ 2, got 1"):
+        followable_target_scale(target.initial_velocity, W, 0.5, 1, 0.38)
