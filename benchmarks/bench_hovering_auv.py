@@ -3,6 +3,7 @@
     python benchmarks/bench_hovering_auv.py [--steps 500] [--max-angular-rate 0.5]
         [--acceleration 0.15] [--speed 0.4] [--accuracy 1e-6] [--attitude-reference step]
         [--figures DIR] [--sweep] [--limits]
+    python benchmarks/bench_hovering_auv.py --closed-loop [--steps 500] [--set FIELD=VALUE ...]
 
 The outer commands at period t = 0.5 s are the paper's Algorithm 2 attitude plan (the
 project's ``TrajectoryAttitudeGenerator``, optionally rate-limited) and a bounded world acceleration
@@ -19,6 +20,10 @@ acceleration, acceleration and speed. ``--sweep`` runs a grid of rate limits and
 accelerations instead; ``--limits`` prints the worst-direction limits derived from the
 thrust limits and inertia (``drake_uuv/models/vehicle_limits.py``) and what the vehicle
 reaches when asked for more; ``--figures`` writes the attitude-tracking and thrust figures.
+
+``--closed-loop`` times ``drake-uuv``'s own ``ClosedLoopSimulation`` instead: the paper
+scenario with ``plant=!HoveringAuv`` (and any ``--set`` overrides), the whole diagram with
+sonar, filter and both controllers, built once and run once (target: 500 steps under 20 s).
 """
 
 import argparse
@@ -189,6 +194,34 @@ def check_limits(config: HoveringAuv) -> None:
             )
 
 
+def closed_loop(steps: int, overrides: list[str]) -> None:
+    """Prints the build, wall and CPU time of one closed-loop run of the paper scenario on the
+    vehicle (``ClosedLoopSimulation``), with the run's vehicle metrics."""
+    from drake_uuv import ClosedLoopSimulation, load_scenario
+
+    scenario = load_scenario("paper", ["plant=!HoveringAuv", f"steps={steps}", *overrides])
+    start = time.perf_counter()
+    simulation = ClosedLoopSimulation(scenario)
+    built, cpu = time.perf_counter(), time.process_time()
+    metrics = simulation.run().metrics
+    wall, cpu = time.perf_counter() - built, time.process_time() - cpu
+    print(
+        f"closed loop, paper scenario on !HoveringAuv, {steps} steps "
+        f"({steps * scenario.time_step:g} s), overrides {overrides or 'none'}"
+    )
+    print(f"  {'build_s':36s} {built - start:.4g}")
+    print(f"  {'run_wall_s (target < 20)':36s} {wall:.4g}")
+    print(f"  {'run_cpu_s':36s} {cpu:.4g}")
+    for name in (
+        "position_rmse",
+        "nees_mean",
+        "attitude_error_mean",
+        "thrust_saturated_fraction",
+        "model_acceleration_rmse",
+    ):
+        print(f"  {name:36s} {metrics[name]:.4g}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=500)
@@ -201,7 +234,21 @@ def main() -> None:
     parser.add_argument("--figures", type=Path, default=None, help="directory for the figures")
     parser.add_argument("--sweep", action="store_true", help="rate limits × accelerations")
     parser.add_argument("--limits", action="store_true", help="derived limits, checked")
+    parser.add_argument(
+        "--closed-loop", action="store_true", help="time drake-uuv's closed loop on the vehicle"
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="scenario override for --closed-loop (repeatable)",
+    )
     args = parser.parse_args()
+    if args.closed_loop:
+        closed_loop(args.steps, args.overrides)
+        return
     config = HoveringAuv()
     if args.accuracy is not None:
         config.integrator_accuracy = args.accuracy

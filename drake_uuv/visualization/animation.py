@@ -8,7 +8,13 @@ import numpy as np
 from pydrake.geometry import Meshcat
 
 from drake_uuv.io import write_text_atomic
-from drake_uuv.visualization.scene import LOG_KEYS, MeshcatScene, SceneFrame, SceneStyle
+from drake_uuv.visualization.scene import (
+    LOG_KEYS,
+    MeshcatScene,
+    SceneFrame,
+    SceneStyle,
+    ThrusterLayout,
+)
 
 
 def _check_log(log: Mapping[str, np.ndarray]) -> int:
@@ -37,6 +43,7 @@ def record_animation(
     meshcat: Meshcat | None = None,
     follow_target: bool = True,
     style: SceneStyle | None = None,
+    thrusters: ThrusterLayout | None = None,
 ) -> Path:
     """Replay a simulation log into a Meshcat recording; write it as one HTML page.
 
@@ -53,6 +60,9 @@ def record_animation(
             recording are replaced); by default a new one is started.
         follow_target: keep the target at the centre of the view.
         style: sizes and colours.
+        thrusters: for a thruster-driven vehicle (``!HoveringAuv``:
+            ``ThrusterLayout.from_config(scenario.plant)``), draw each thruster's
+            effort from ``log["thrust"]`` (N×n).
 
     Returns:
         ``out_html``. The page embeds all scripts and data (no network needed)
@@ -60,6 +70,11 @@ def record_animation(
         and scrubs it.
     """
     n = _check_log(log)
+    if thrusters is not None and np.shape(log.get("thrust")) != (n, thrusters.count):
+        raise ValueError(
+            f"log['thrust'] has shape {np.shape(log.get('thrust'))}, expected "
+            f"({n}, {thrusters.count}) for the thrusters"
+        )
     if time_step <= 0:
         raise ValueError(f"time_step must be > 0, got {time_step}")
     if playback_speed <= 0:
@@ -68,7 +83,7 @@ def record_animation(
     if meshcat is None:
         meshcat = Meshcat()
     meshcat.DeleteRecording()
-    scene = MeshcatScene(meshcat, baseline_B, trail_length, follow_target, style)
+    scene = MeshcatScene(meshcat, baseline_B, trail_length, follow_target, style, thrusters)
     scene.frame_log(log)
 
     # One animation frame per step; key times sit mid-frame because Drake

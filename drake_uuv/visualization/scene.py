@@ -18,6 +18,9 @@ The scene (colours in :class:`SceneStyle`):
   colour of their sonar;
 * the trails of both trajectories, the last ``trail_length`` steps (UUV
   yellow, target light red);
+* for a thruster-driven vehicle (a :class:`ThrusterLayout`), its thrusters' efforts: one
+  thin cyan cylinder per thruster from its position along the force it applies, as long as
+  ``thruster_length`` at full thrust (``log["thrust"]``, held over each step);
 * the estimated target position ``p_UUV − q̂`` (magenta) with the 3-σ ellipsoid
   of the position block of P (translucent surface plus its three principal
   ellipses). The UUV position is known exactly, so the covariance of the
@@ -45,13 +48,25 @@ import itertools
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydrake.geometry import Cylinder, Ellipsoid, Meshcat, Rgba, Sphere
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.perception import BaseField, Fields, PointCloud
 
-__all__ = ["SCENE_ROOT", "MeshcatScene", "SceneFrame", "SceneStyle", "world_particles"]
+if TYPE_CHECKING:
+    from drake_uuv.scenario.plants import HoveringAuv
+
+__all__ = [
+    "SCENE_ROOT",
+    "MeshcatScene",
+    "SceneFrame",
+    "SceneStyle",
+    "ThrusterLayout",
+    "thruster_jets",
+    "world_particles",
+]
 
 #: Root path of the scene in the Meshcat tree (absolute, so it never collides
 #: with Drake's own ``/drake/...`` visualizers).
@@ -97,6 +112,9 @@ class SceneStyle:
     #: target over the run (and the distance at load), not the maximum: one
     #: transient excursion would otherwise make everything small.
     camera_reach_percentile: float = 90.0
+    #: Thruster jets: radius, and length at full thrust (scaled by |f| / f_max).
+    thruster_radius: float = 0.03
+    thruster_length: float = 0.6
 
     body_rgb: tuple[float, float, float] = (1.0, 0.55, 0.0)
     target_rgb: tuple[float, float, float] = (0.9, 0.05, 0.05)
@@ -107,6 +125,64 @@ class SceneStyle:
     uuv_trail_rgb: tuple[float, float, float] = (0.95, 0.85, 0.1)
     target_trail_rgb: tuple[float, float, float] = (1.0, 0.55, 0.55)
     particle_rgb: tuple[float, float, float] = (0.95, 0.95, 1.0)
+    thruster_rgb: tuple[float, float, float] = (0.0, 0.8, 0.85)
+
+
+@dataclass(frozen=True)
+class ThrusterLayout:
+    """Where a vehicle's thrusters sit and push, in the body frame, and their force limit.
+
+    Attributes:
+        positions: n×3 thruster positions from the body origin [m].
+        directions: n×3 directions of positive thrust (normalised here).
+        max_thrust: largest |thrust| of each thruster [N].
+    """
+
+    positions: np.ndarray
+    directions: np.ndarray
+    max_thrust: float
+
+    def __post_init__(self) -> None:
+        positions = np.asarray(self.positions, dtype=float)
+        directions = np.asarray(self.directions, dtype=float)
+        if positions.ndim != 2 or positions.shape[1] != 3 or directions.shape != positions.shape:
+            raise ValueError(
+                f"directions: must be n×3 like positions {positions.shape}, got {directions.shape}"
+            )
+        norms = np.linalg.norm(directions, axis=1)
+        if np.any(norms <= 0.0):
+            raise ValueError(f"directions: must be non-zero, got {directions.tolist()}")
+        if not self.max_thrust > 0.0:
+            raise ValueError(f"max_thrust: must be > 0, got {self.max_thrust!r}")
+        object.__setattr__(self, "positions", positions)
+        object.__setattr__(self, "directions", directions / norms[:, None])
+
+    @classmethod
+    def from_config(cls, config: HoveringAuv) -> ThrusterLayout:
+        """The layout of a plant config with ``thruster_positions``, ``thruster_directions``
+        and ``max_thrust`` (``!HoveringAuv``)."""
+        return cls(
+            np.asarray(config.thruster_positions, dtype=float),
+            np.asarray(config.thruster_directions, dtype=float),
+            float(config.max_thrust),
+        )
+
+    @property
+    def count(self) -> int:
+        return len(self.positions)
+
+
+def thruster_jets(
+    layout: ThrusterLayout, thrust: np.ndarray, length: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Body-frame start and end points (n×3 each) of the thrusters' jets: from each
+    thruster's position along the force it applies, ``length · f / f_max`` long (a thrust
+    beyond the limit is drawn at the limit)."""
+    thrust = np.asarray(thrust, dtype=float).reshape(-1)
+    if thrust.shape != (layout.count,):
+        raise ValueError(f"thrust: must have {layout.count} entries, got {thrust.shape}")
+    fraction = np.clip(thrust / layout.max_thrust, -1.0, 1.0)
+    return layout.positions, layout.positions + length * fraction[:, None] * layout.directions
 
 
 @dataclass(frozen=True)
@@ -119,6 +195,7 @@ class SceneFrame:
         p_WT: true target position (3,).
         q_hat: estimated relative position ``p_WU − p̂_WT`` (3,).
         P_qq: covariance of ``q_hat``, the 3×3 position block of P (3, 3).
+        thrust: the thrusters' forces [N] (n,), or None for a vehicle without them.
     """
 
     p_WU: np.ndarray
@@ -126,6 +203,7 @@ class SceneFrame:
     p_WT: np.ndarray
     q_hat: np.ndarray
     P_qq: np.ndarray
+    thrust: np.ndarray | None = None
 
     @property
     def p_WT_hat(self) -> np.ndarray:
@@ -134,14 +212,17 @@ class SceneFrame:
 
     @classmethod
     def from_log(cls, log: Mapping[str, np.ndarray], k: int) -> SceneFrame:
-        """The frame at row ``k`` of a simulation log (see :data:`LOG_KEYS`)."""
+        """The frame at row ``k`` of a simulation log (see :data:`LOG_KEYS`; ``thrust`` too
+        if the log has it)."""
         P = np.asarray(log["P_TU"][k], dtype=float)
+        thrust = np.asarray(log["thrust"][k], dtype=float) if "thrust" in log else None
         return cls(
             p_WU=np.asarray(log["p_WU"][k], dtype=float),
             R_WB=np.asarray(log["R_WB"][k], dtype=float).reshape(3, 3),
             p_WT=np.asarray(log["p_WT"][k], dtype=float),
             q_hat=np.asarray(log["x_TU_hat"][k][:3], dtype=float),
             P_qq=P.reshape(6, 6)[:3, :3],
+            thrust=thrust,
         )
 
 
@@ -229,6 +310,7 @@ class MeshcatScene:
         follow_target: keep the target at the centre of the view (see module
             docstring); otherwise the camera is fixed in the world.
         style: sizes and colours.
+        thrusters: draw these thrusters' efforts from each frame's ``thrust``.
     """
 
     def __init__(
@@ -238,6 +320,7 @@ class MeshcatScene:
         trail_length: int = 50,
         follow_target: bool = True,
         style: SceneStyle | None = None,
+        thrusters: ThrusterLayout | None = None,
     ) -> None:
         baseline_B = np.asarray(baseline_B, dtype=float).reshape(-1)
         if baseline_B.shape != (3,):
@@ -249,6 +332,7 @@ class MeshcatScene:
         self.trail_length = int(trail_length)
         self.follow_target = bool(follow_target)
         self.style = style or SceneStyle()
+        self.thrusters = thrusters
         #: Camera position and look-at point set by the last :meth:`set_camera`,
         #: in Meshcat's (z-up) world, i.e. after the follow translation.
         self.camera_position: np.ndarray | None = None
@@ -312,6 +396,10 @@ class MeshcatScene:
         # Unit-length beams along z, centred: posed and stretched by draw().
         m.SetObject(f"{root}/beams/s1", Cylinder(st.beam_radius, 1.0), _rgba(st.s1_rgb))
         m.SetObject(f"{root}/beams/s2", Cylinder(st.beam_radius, 1.0), _rgba(st.s2_rgb))
+        # Unit-length thruster jets in the body frame, stretched by draw() like the beams.
+        for i in range(self.thrusters.count if self.thrusters else 0):
+            path = f"{root}/uuv/thrusters/{i}"
+            m.SetObject(path, Cylinder(st.thruster_radius, 1.0), _rgba(st.thruster_rgb))
         # Screen-fixed grid and axes mislead when the view follows the target.
         m.SetProperty("/Grid", "visible", not self.follow_target)
         m.SetProperty("/Axes", "visible", not self.follow_target)
@@ -440,6 +528,11 @@ class MeshcatScene:
         R_E, radii = _covariance_axes(frame.P_qq, self.style.covariance_sigma)
         m.SetTransform(f"{root}/estimate/ellipsoid", RigidTransform(R_E, np.zeros(3)), t)
         m.SetProperty(f"{root}/estimate/ellipsoid", "scale", radii, t)
+
+        if self.thrusters is not None and frame.thrust is not None:
+            starts, ends = thruster_jets(self.thrusters, frame.thrust, self.style.thruster_length)
+            for i, (start, end) in enumerate(zip(starts, ends, strict=True)):
+                self._set_stretched(f"{root}/uuv/thrusters/{i}", start, end, t)
 
         self._extend_trail(self._trails["uuv"], frame.p_WU, t)
         self._extend_trail(self._trails["target"], frame.p_WT, t)
