@@ -48,6 +48,7 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
         initial_estimate: np.ndarray,
         initial_covariance: np.ndarray,
         gate_probability: float | None = None,
+        vehicle_motion: str = "commanded",
     ) -> None:
         super().__init__(
             time_step,
@@ -55,6 +56,7 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
             initial_estimate,
             initial_covariance,
             gate_probability,
+            vehicle_motion,
         )
         self._Y_port = self.DeclareVectorInputPort("Y", 1)
         self._m_port = self.DeclareVectorInputPort("m", 1)
@@ -72,6 +74,7 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
             np.asarray(e.initial_estimate),
             np.asarray(e.initial_covariance),
             e.gate_probability,
+            e.vehicle_motion,
         )
 
     def measurement_update(

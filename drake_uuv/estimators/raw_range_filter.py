@@ -98,6 +98,7 @@ class RawRangeEstimator(RelativeStateEstimator):
         noise_model: str = "derived",
         handover: HandoverPolicy | None = None,
         gate_probability: float | None = None,
+        vehicle_motion: str = "commanded",
     ) -> None:
         if method not in UPDATES:
             raise ValueError(f"method: must be one of {', '.join(UPDATES)}, got {method!r}")
@@ -107,6 +108,7 @@ class RawRangeEstimator(RelativeStateEstimator):
             initial_estimate,
             initial_covariance,
             gate_probability,
+            vehicle_motion,
         )
         self._method = method
         self._update = UPDATES[method]
@@ -140,6 +142,7 @@ class RawRangeEstimator(RelativeStateEstimator):
                 max_linear_steps=e.linear_start_max_steps,
             ),
             gate_probability=e.gate_probability,
+            vehicle_motion=e.vehicle_motion,
         )
 
     @property

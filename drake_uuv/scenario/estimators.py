@@ -50,6 +50,11 @@ class EstimatorOptions:
     # known (0 for the paper's kinematic vehicle, which follows it exactly; a real vehicle's
     # is measured by the run metric model_acceleration_rmse: variance ≈ rmse²/3 per axis).
     added_acceleration_variance: float = 0.0
+    # How the filter accounts for the vehicle's own motion: "commanded" (the paper's: it
+    # predicts with the commanded acceleration R u1, exact for the kinematic vehicle) or
+    # "navigation" (it predicts the target and takes the vehicle's state, known as the paper
+    # assumes, from its navigation: exact for a vehicle that does not move as commanded).
+    vehicle_motion: str = "commanded"
 
     def validate(self, name: str) -> None:
         check_choice(f"{name}.noise_model", self.noise_model, NOISE_MODELS)
@@ -59,6 +64,7 @@ class EstimatorOptions:
         check_positive(
             f"{name}.added_acceleration_variance", self.added_acceleration_variance, strict=False
         )
+        check_choice(f"{name}.vehicle_motion", self.vehicle_motion, ("commanded", "navigation"))
 
     def filter_acceleration_covariance(self, W: list[list[float]]) -> np.ndarray:
         """The acceleration covariance of the filter's process noise: ``W + σ² I``."""

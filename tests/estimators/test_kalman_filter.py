@@ -4,11 +4,13 @@ prediction, missing returns and the NIS gate."""
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from pydrake.systems.analysis import Simulator
 
 from drake_uuv.estimators import RangeDifferenceKalmanFilter, make_estimator
 from drake_uuv.models.measurement import DROPPED, GATED, OUT_OF_BEAM, OUT_OF_RANGE, VALID
 from drake_uuv.models.motion import double_integrator
 from drake_uuv.scenario import load_scenario
+from drake_uuv.simulation import simulate
 from drake_uuv.testing import discrete_update, fixed_context
 
 T = 0.5
@@ -142,3 +144,45 @@ def test_factory_builds_the_papers_kf_with_the_scenarios_prior() -> None:
     assert_allclose(kf.GetOutputPort("x_TU_prior").Eval(context), np.zeros(6))
     assert_allclose(kf.GetOutputPort("P_TU_prior").Eval(context).reshape(6, 6), np.eye(6))
     assert kf.gate_threshold(1) == pytest.approx(2.705543454095404, rel=1e-9)  # χ²(1) at 0.9
+
+
+def test_navigation_and_commanded_motion_agree_on_the_kinematic_vehicle() -> None:
+    """Two formulations of the prediction: with the commanded acceleration (the paper's) and
+    from the vehicle's known state (predicting the target). The kinematic vehicle moves
+    exactly as commanded, so the two filters' estimates agree over a whole run."""
+    common = ["steps=200", "steady_state_start=50"]
+    commanded = simulate(load_scenario("paper", common, seed=2)).log
+    navigation = simulate(
+        load_scenario("paper", [*common, "estimator.vehicle_motion=navigation"], seed=2)
+    ).log
+    assert_allclose(navigation["x_TU_hat"], commanded["x_TU_hat"], rtol=1e-9, atol=1e-9)
+    assert_allclose(navigation["P_TU"], commanded["P_TU"], rtol=1e-9, atol=1e-12)
+
+
+def test_navigation_prediction_is_the_targets() -> None:
+    """One step alone: X̄(k+1|k) = A (X(k) − Υ̂(k|k)), Υ̂(k+1|k) = X(k+1) − X̄(k+1|k)."""
+    kf = RangeDifferenceKalmanFilter(T, W, x0, P0, vehicle_motion="navigation")
+    assert not kf.HasInputPort("u1_W") and kf.HasInputPort("p_WU") and kf.HasInputPort("v_WU")
+    u = inputs()
+    del u["u1_W"]
+    p, v = np.array([4.0, -1.0, 0.5]), np.array([0.3, 0.1, -0.2])
+    # Initialization makes the stored offset Υ̂(0|−1) − X(0): the prior is x0 whatever X(0).
+    kf_start = RangeDifferenceKalmanFilter(T, W, x0, P0, vehicle_motion="navigation")
+    start = fixed_context(kf_start, **u, p_WU=p, v_WU=v)
+    Simulator(kf_start, start).Initialize()
+    assert_allclose(kf_start.GetOutputPort("x_TU_prior").Eval(start), x0, rtol=1e-14)
+    # The periodic update predicts the target: the next prior at a new vehicle state X(k+1).
+    x_hat = kf_start.GetOutputPort("x_TU_hat").Eval(start)
+    A, _ = double_integrator(T)
+    start.SetDiscreteState(kf_start.EvalUniquePeriodicDiscreteUpdate(start))
+    X = np.concatenate([p, v])
+    X_next = X + np.array([0.1, 0.2, 0.3, 0.0, 0.1, 0.0])
+    kf_start.GetInputPort("p_WU").FixValue(start, X_next[:3])
+    kf_start.GetInputPort("v_WU").FixValue(start, X_next[3:])
+    assert_allclose(
+        kf_start.GetOutputPort("x_TU_prior").Eval(start), X_next - A @ (X - x_hat), rtol=1e-12
+    )
+    with pytest.raises(
+        ValueError, match=r"^vehicle_motion: must be one of commanded, navigation, got 'gps'"
+    ):
+        RangeDifferenceKalmanFilter(T, W, x0, P0, vehicle_motion="gps")
