@@ -9,9 +9,8 @@ import math
 
 import pytest
 
-from drake_uuv.compare import ESTIMATOR_GROUP, Variant, ratio_tables
-from drake_uuv.montecarlo import Study, run_study
 from drake_uuv.scenario import load_scenario
+from drake_uuv.studies import Study, run_study
 
 pytestmark = pytest.mark.slow
 
@@ -68,25 +67,3 @@ def test_ekf_is_consistent_and_the_papers_kf_is_not_efficient(ekf_study, tmp_pat
     assert k["position_rmse_over_pcrlb"] > 2.0
     assert k["position_rmse"] == pytest.approx(k["kf_riccati_position_rmse"], rel=0.25)
     assert s["kf_riccati_position_rmse"] > 2 * s["pcrlb_per_run_position_rmse"]
-
-
-def test_ratio_tables_pivot_estimator_by_attitude_mode() -> None:
-    def summary(position: float, velocity: float) -> dict:
-        return {"position_rmse_over_pcrlb": position, "velocity_rmse_over_pcrlb": velocity,
-                "position_rmse_over_per_run_pcrlb": position / 1.1,
-                "velocity_rmse_over_per_run_pcrlb": velocity and velocity / 1.1}  # fmt: skip
-
-    rows = [
-        (Variant(f"{e}-{m}", ESTIMATOR_GROUP, (f"estimator=!{e}", f"attitude=!{m}")),
-         summary(p, v))
-        for e, m, p, v in [("PaperKf", "TrajectoryAttitude", 3.0, 1.5),
-                           ("Ekf", "TrajectoryAttitude", 1.08, 1.01),
-                           ("Ekf", "RandomAttitude", 1.2, None)]
-    ]  # fmt: skip
-    rows.append((Variant("other", "another group", ()), summary(77.0, 77.0)))
-    text = ratio_tables(rows)
-    assert "| estimator | TrajectoryAttitude | RandomAttitude |" in text
-    assert "| PaperKf | 3 / 1.5 | — / — |" in text
-    assert "| Ekf | 1.08 / 1.01 | 1.2 / — |" in text
-    assert "77" not in text  # other groups stay out
-    assert ratio_tables(rows[-1:]) == ""
