@@ -1,0 +1,100 @@
+"""Unscented Kalman filter on both raw ranges, started by the paper's linear KF."""
+
+import numpy as np
+from pydrake.systems.framework import Context
+
+from drake_uuv.estimators.filters_math import HandoverPolicy
+from drake_uuv.estimators.linear_start import LinearStartEstimator
+from drake_uuv.models.handover import HandoverRule
+from drake_uuv.models.unscented import (
+    DEFAULT_PARAMETERS,
+    SigmaPointParameters,
+    ukf_range_update,
+)
+
+
+class UnscentedRangeEstimator(LinearStartEstimator):
+    """A UKF on the two raw ranges (all ``f`` samples), after a linear-KF start.
+
+    The update is :func:`~drake_uuv.models.unscented.ukf_range_update`: the unscented
+    transform of the prior through ``h(x) = [|q + ½ q_s|, |q − ½ q_s|]`` with the sigma points
+    of :data:`~drake_uuv.models.unscented.DEFAULT_PARAMETERS` (Wan & van der Merwe's scaled
+    transform with α = 1, β = 2, κ = 3 − n: points at ±√3 σ, all covariance weights
+    positive), covariance in Joseph form. Unlike the EKF it keeps the second-order term of
+    the ranges, ``tr(P⊥)/(2d)``, so it stays consistent at long range (mean NEES 6.2–6.6 at
+    14 and 28 m, where the EKF's is 10–12, in the numpy study of
+    ``benchmarks/estimator_regimes.py``), at the price of treating the curvature of the
+    range shell as noise (1.17× and 1.32× the per-run Cramér–Rao bound there, the EKF 1.13×
+    and 1.21×).
+
+    The start and the hand-over are :class:`~drake_uuv.estimators.linear_start.
+    LinearStartEstimator`'s, by default :class:`~drake_uuv.models.handover.HandoverRule` ``()``:
+    a Gaussian filter on the ranges needs the cross-range spread small against the range
+    whatever its sigma points. Timing, prediction, the NIS gate and the common ports are
+    those of :class:`~drake_uuv.estimators.base.RelativeStateEstimator`.
+
+    .. pydrake_system::
+
+        name: UnscentedRangeEstimator
+        input_ports:
+        - range_samples
+        - q_s
+        - sonar_status
+        - a_W
+        output_ports:
+        - x_hat
+        - P
+        - x_prior
+        - P_prior
+        - measurement_status
+        - nis
+
+    - ``range_samples`` (2f): sonar 1's f samples then sonar 2's [m]; NaN without a return.
+    - ``q_s`` (3): world sonar baseline ``R_WB b``.
+    - Common ports (``sonar_status``, ``a_W``, the outputs): see the base class.
+    """
+
+    def __init__(
+        self,
+        time_step: float,
+        acceleration_covariance: np.ndarray,
+        initial_estimate: np.ndarray,
+        initial_covariance: np.ndarray,
+        noise_variances: np.ndarray,
+        samples_per_step: int = 1,
+        noise_model: str = "derived",
+        handover: HandoverRule | HandoverPolicy | None = None,
+        gate_probability: float | None = None,
+        sigma_points: SigmaPointParameters = DEFAULT_PARAMETERS,
+    ) -> None:
+        super().__init__(
+            time_step,
+            acceleration_covariance,
+            initial_estimate,
+            initial_covariance,
+            noise_variances,
+            samples_per_step,
+            noise_model,
+            handover,
+            gate_probability,
+        )
+        if not isinstance(sigma_points, SigmaPointParameters):
+            raise ValueError(f"sigma_points: must be SigmaPointParameters, got {sigma_points!r}")
+        sigma_points.spread(6)  # Fail early on a κ with n + κ ≤ 0.
+        self._sigma_points = sigma_points
+        self._declare_ports()
+
+    @property
+    def sigma_points(self) -> SigmaPointParameters:
+        return self._sigma_points
+
+    def range_update(
+        self,
+        context: Context,
+        x_prior: np.ndarray,
+        P_prior: np.ndarray,
+        z: np.ndarray,
+        q_s: np.ndarray,
+        sonars: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        return ukf_range_update(x_prior, P_prior, z, q_s, self._R, sonars, self._sigma_points)
