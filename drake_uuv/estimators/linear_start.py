@@ -175,5 +175,10 @@ class LinearStartEstimator(RelativeStateEstimator):
         if isinstance(self._policy, HandoverPolicy):
             return self._policy.handover_due(filtered.P, done)
         return self._policy.handover_due(
-            filtered.P, done, x=filtered.x, q_s=q_s, prior_covariance=S
+            filtered.P,
+            done,
+            x=filtered.x,
+            q_s=q_s,
+            prior_covariance=S,
+            noise_std=np.sqrt(self._mean_variances),
         )

@@ -85,6 +85,17 @@ def cross_range_angle(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> np.ndarr
     return out
 
 
+def second_order_range_error(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> np.ndarray:
+    """``tr(P⊥ᵢ)/(2 dᵢ)`` for both sonars (shape (2,)) [m]: the mean of the quadratic term of
+    ``d(q + e) = d + uᵀe + (|e|² − (uᵀe)²)/(2d) + …`` under ``e ~ N(0, P_qq)``, the range a
+    linearisation at the estimate drops (``= θ² d / 2`` with :func:`cross_range_angle`)."""
+    q = np.asarray(x, dtype=float)[:3]
+    half = 0.5 * np.asarray(q_s, dtype=float).reshape(3)
+    angles = cross_range_angle(x, P, q_s)
+    distances = np.array([np.linalg.norm(q + half), np.linalg.norm(q - half)])
+    return 0.5 * angles * angles * distances
+
+
 def prior_share_predict(S: np.ndarray, A: np.ndarray) -> np.ndarray:
     """The prior's share of the covariance through a prediction: ``A S Aᵀ`` (no process noise)."""
     return A @ S @ A.T
@@ -122,6 +133,9 @@ class HandoverRule:
     prior_share: float = 0.1
     min_linear_steps: int = 1
     max_linear_steps: int | None = None
+    # For a filter that drops the second-order term (the EKF): also require
+    # tr(P⊥)/(2d) ≤ second_order_tolerance · σ/√f (None: no such test).
+    second_order_tolerance: float | None = None
 
     def __post_init__(self) -> None:
         if self.angle_tolerance is not None and not (
@@ -130,6 +144,10 @@ class HandoverRule:
             raise ValueError(f"angle_tolerance: must be > 0 or None, got {self.angle_tolerance!r}")
         if not self.prior_share > 0.0:  # inf: no test 1 (NaN fails here too)
             raise ValueError(f"prior_share: must be > 0, got {self.prior_share!r}")
+        if self.second_order_tolerance is not None and not self.second_order_tolerance > 0.0:
+            raise ValueError(
+                f"second_order_tolerance: must be > 0 or None, got {self.second_order_tolerance!r}"
+            )
         if self.min_linear_steps < 0:
             raise ValueError(f"min_linear_steps: must be ≥ 0, got {self.min_linear_steps!r}")
         if self.max_linear_steps is not None and self.max_linear_steps < 0:
@@ -148,8 +166,10 @@ class HandoverRule:
         x: np.ndarray,
         q_s: np.ndarray,
         prior_covariance: np.ndarray,
+        noise_std: np.ndarray | None = None,
     ) -> bool:
-        """True if the next update should be a range update (``prior_covariance`` is ``S``)."""
+        """True if the next update should be a range update (``prior_covariance`` is ``S``,
+        ``noise_std`` the per-sonar ``√(η/f)``, needed with ``second_order_tolerance``)."""
         if self.max_linear_steps is not None and linear_steps_done >= self.max_linear_steps:
             return True
         if linear_steps_done < self.min_linear_steps:
@@ -158,6 +178,13 @@ class HandoverRule:
         prior = float(np.trace(np.asarray(prior_covariance, dtype=float)[:3, :3]))
         if not prior <= self.prior_share * float(np.trace(P[:3, :3])):
             return False
-        if self.angle_tolerance is None:
+        if self.angle_tolerance is not None and not np.all(
+            cross_range_angle(x, P, q_s) <= self.angle_tolerance
+        ):
+            return False
+        if self.second_order_tolerance is None:
             return True
-        return bool(np.all(cross_range_angle(x, P, q_s) <= self.angle_tolerance))
+        if noise_std is None:
+            raise ValueError("noise_std: needed with second_order_tolerance, got None")
+        limit = self.second_order_tolerance * np.asarray(noise_std, dtype=float)
+        return bool(np.all(second_order_range_error(x, P, q_s) <= limit))

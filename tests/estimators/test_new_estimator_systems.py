@@ -399,3 +399,12 @@ def test_bad_noise_arguments_raise(args, message):
             values["samples_per_step"],
             values["noise_model"],
         )
+
+
+@pytest.mark.parametrize(("tolerance", "phase"), [(10.0, RANGE_PHASE), (0.1, LINEAR_PHASE)])
+def test_the_second_order_test_uses_the_noise_of_the_means(tolerance, phase):
+    # After one update tr P⊥/(2d) ≈ 0.055 m; the means' noise is √(η/f) = 0.058, 0.082 m.
+    system = ekf(handover=HandoverRule(second_order_tolerance=tolerance))
+    context = fixed_context(system, **inputs())
+    context.SetDiscreteState(system.prior_share_index, (0.01 * P0).ravel())
+    assert_allclose(discrete_update(system, context, system.start_state_index), [phase, 1])

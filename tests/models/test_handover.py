@@ -13,6 +13,7 @@ from drake_uuv.models.handover import (
     cross_range_angle,
     prior_share_predict,
     prior_share_update,
+    second_order_range_error,
 )
 
 A, B = relative_model_matrices(0.5)
@@ -133,3 +134,24 @@ def test_the_angle_test_scales_with_the_range():
 def test_bad_parameters_raise(kwargs, message):
     with pytest.raises(ValueError, match=message):
         HandoverRule(**kwargs)
+
+
+def test_second_order_error_is_half_the_squared_angle_times_the_range():
+    x = np.array([4.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    P = np.diag([1.0, 0.09, 0.16, 0.1, 0.1, 0.1])
+    # Baseline zero: u = x̂, tr P⊥ = 0.25, so tr P⊥ / (2d) = 0.25 / 8.
+    assert_allclose(second_order_range_error(x, P, np.zeros(3)), [0.03125, 0.03125], rtol=1e-14)
+
+
+@pytest.mark.parametrize(("noise_std", "due"), [(0.04, True), (0.02, False)])
+def test_second_order_test_compares_with_the_range_noise(noise_std, due):
+    x = np.array([4.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    P = np.diag([1.0, 0.09, 0.16, 0.1, 0.1, 0.1])  # error 0.03125 m, angle 0.125 rad
+    rule = HandoverRule(second_order_tolerance=1.0)
+    kwargs = dict(x=x, q_s=np.zeros(3), prior_covariance=np.zeros((6, 6)))
+    assert rule.handover_due(P, 5, noise_std=np.full(2, noise_std), **kwargs) is due
+    assert HandoverRule().handover_due(P, 5, **kwargs)  # no second-order test by default
+    with pytest.raises(ValueError, match=r"^noise_std: needed with second_order_tolerance"):
+        rule.handover_due(P, 5, **kwargs)
+    with pytest.raises(ValueError, match=r"^second_order_tolerance: must be > 0 or None, got 0.0$"):
+        HandoverRule(second_order_tolerance=0.0)
