@@ -91,7 +91,6 @@ def make_estimator(scenario: Scenario) -> LeafSystem:
             angle_tolerance=None if e.type == "particle" else e.handover_angle,
             prior_share=e.handover_prior_share,
             max_linear_steps=e.linear_start_max_steps,
-            second_order_tolerance=e.handover_second_order if e.type in ("ekf", "iekf") else None,
         )
     common = (
         scenario.time_step,

@@ -143,7 +143,6 @@ class EstimatorConfig:
     handover: str = "default"
     handover_angle: float = 0.25
     handover_prior_share: float = 0.1
-    handover_second_order: float | None = 1.0  # ekf/iekf only
     # WIP: particle filter.
     particle_count: int = 5000
     particle_bandwidth_scale: float = 1.0
