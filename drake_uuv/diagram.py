@@ -12,10 +12,6 @@ from pydrake.systems.primitives import LogVectorOutput, RandomSource, VectorLogS
 from drake_uuv.controllers import AttitudeGenerator, LqrTrackingController, TrackingController
 from drake_uuv.estimators import RangeDifferenceKalmanFilter, RawRangeEstimator
 from drake_uuv.estimators.filters_math import HandoverPolicy
-from drake_uuv.estimators.particle_filter import ParticleRangeEstimator
-from drake_uuv.estimators.unscented_filter import UnscentedRangeEstimator
-from drake_uuv.models.handover import HandoverRule
-from drake_uuv.models.particle_filter import ParticleFilterParameters
 from drake_uuv.plants import TargetRandomWalk, UuvPlant
 from drake_uuv.primitives import NoiseHold
 from drake_uuv.scenario import Scenario
@@ -78,51 +74,21 @@ def make_estimator(scenario: Scenario) -> LeafSystem:
             np.asarray(e.initial_covariance),
             e.gate_probability,
         )
-    handover = e.handover
-    if handover == "default":
-        handover = "covariance" if e.type in ("ekf", "iekf") else "rule"
-    if handover == "covariance":
-        policy = HandoverPolicy(
-            position_variance_threshold=e.linear_start_position_variance,
-            max_linear_steps=e.linear_start_max_steps,
-        )
-    else:
-        policy = HandoverRule(
-            angle_tolerance=None if e.type == "particle" else e.handover_angle,
-            prior_share=e.handover_prior_share,
-            max_linear_steps=e.linear_start_max_steps,
-        )
-    common = (
-        scenario.time_step,
-        np.asarray(scenario.target.acceleration_covariance),
-        np.asarray(e.initial_estimate),
-        np.asarray(e.initial_covariance),
-        np.asarray(scenario.sonar.noise_variances),
-        scenario.sonar.samples_per_step,
-    )
     if e.type in ("ekf", "iekf"):
         return RawRangeEstimator(
-            *common,
+            scenario.time_step,
+            np.asarray(scenario.target.acceleration_covariance),
+            np.asarray(e.initial_estimate),
+            np.asarray(e.initial_covariance),
+            np.asarray(scenario.sonar.noise_variances),
+            scenario.sonar.samples_per_step,
             method=e.type,
             noise_model=e.noise_model,
-            handover=policy,
-            gate_probability=e.gate_probability,
-        )
-    if e.type == "unscented":
-        return UnscentedRangeEstimator(
-            *common, e.noise_model, handover=policy, gate_probability=e.gate_probability
-        )
-    if e.type == "particle":
-        return ParticleRangeEstimator(
-            *common,
-            e.noise_model,
-            handover=policy,
-            gate_probability=e.gate_probability,
-            parameters=ParticleFilterParameters(
-                count=e.particle_count,
-                resample_threshold=e.particle_resample_threshold,
-                bandwidth_scale=e.particle_bandwidth_scale,
+            handover=HandoverPolicy(
+                position_variance_threshold=e.linear_start_position_variance,
+                max_linear_steps=e.linear_start_max_steps,
             ),
+            gate_probability=e.gate_probability,
         )
     raise ValueError(f"estimator.type: unknown estimator, got {e.type!r}")
 
@@ -132,9 +98,7 @@ def make_tracking_controller(scenario: Scenario) -> LeafSystem:
     c = scenario.tracking
     q_star = np.asarray(c.desired_relative_position)
     if c.type == "paper":
-        return TrackingController(
-            scenario.time_step, c.alpha, q_star, c.max_acceleration, c.reference_frame == "world"
-        )
+        return TrackingController(scenario.time_step, c.alpha, q_star, c.max_acceleration)
     if c.type == "lqr":
         return LqrTrackingController(
             scenario.time_step,
@@ -240,9 +204,6 @@ def make_uuv_diagram(
     for name in distributions:
         if sonar.HasInputPort(name):
             random_ports[name] = sonar.GetInputPort(name)
-    if estimator.HasInputPort("particle_seed"):  # WIP wiring
-        distributions["particle_seed"] = RandomDistribution.kUniform
-        random_ports["particle_seed"] = estimator.GetInputPort("particle_seed")
     for name, port in random_ports.items():
         distribution = distributions.get(name, RandomDistribution.kGaussian)
         source = builder.AddNamedSystem(name, RandomSource(distribution, port.size(), t))

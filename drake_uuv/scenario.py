@@ -28,11 +28,6 @@ from pydrake.common.yaml import yaml_load_typed
 NOISE_MODELS = ("derived", "paper_printed")
 ATTITUDE_MODES = ("fixed", "random", "trajectory")
 ESTIMATOR_TYPES = ("kf", "ekf", "iekf")
-# WIP wiring (not for merge): the UKF and the particle filter, kept out of ESTIMATOR_TYPES so
-# that compare and the diagram export do not pick them up.
-WIP_ESTIMATOR_TYPES = ("unscented", "particle")
-HANDOVERS = ("default", "covariance", "rule")
-REFERENCE_FRAMES = ("body", "world")
 TRACKING_TYPES = ("paper", "lqr")
 ALPHA_PROVEN_INTERVAL = (1.0 - 1.0 / math.sqrt(2.0), 1.0 + 1.0 / math.sqrt(2.0))
 
@@ -138,15 +133,6 @@ class EstimatorConfig:
     # estimators/raw_range_filter.py.
     linear_start_position_variance: float = 0.5
     linear_start_max_steps: int | None = None
-    # WIP: "covariance" (the threshold above), "rule" (models/handover.py: prior share and
-    # cross-range angle), "default" (covariance for ekf/iekf, rule for unscented/particle).
-    handover: str = "default"
-    handover_angle: float = 0.25
-    handover_prior_share: float = 0.1
-    # WIP: particle filter.
-    particle_count: int = 5000
-    particle_bandwidth_scale: float = 1.0
-    particle_resample_threshold: float = 0.5
 
 
 @dataclass
@@ -182,8 +168,6 @@ class TrackingConfig:
     lqr_feedforward: bool = True
     # Largest |world acceleration| [m/s²], applied to either law; None means unlimited.
     max_acceleration: float | None = None
-    # WIP (paper law only): the frame q* is held in, "body" (the paper) or "world".
-    reference_frame: str = "body"
 
 
 @dataclass
@@ -456,9 +440,7 @@ def validate_scenario(s: Scenario) -> None:
         _fail("sonar.outlier_probability", "must be in [0, 1)", s.sonar.outlier_probability)
     _positive("sonar.outlier_scale", s.sonar.outlier_scale)
 
-    _choice("estimator.type", s.estimator.type, ESTIMATOR_TYPES + WIP_ESTIMATOR_TYPES)
-    _choice("estimator.handover", s.estimator.handover, HANDOVERS)
-    _choice("tracking.reference_frame", s.tracking.reference_frame, REFERENCE_FRAMES)
+    _choice("estimator.type", s.estimator.type, ESTIMATOR_TYPES)
     _choice("estimator.noise_model", s.estimator.noise_model, NOISE_MODELS)
     _vector("estimator.initial_estimate", s.estimator.initial_estimate, 6)
     _spd("estimator.initial_covariance", s.estimator.initial_covariance, 6)

@@ -36,10 +36,8 @@ class TrackingController(LeafSystem):
         alpha: float,
         desired_relative_position_B: np.ndarray,
         max_acceleration: float | None = None,
-        world_frame: bool = False,  # WIP wiring: q* held in the world frame
     ) -> None:
         super().__init__()
-        self._world_frame = world_frame
         t = float(time_step)
         self._position_gain = 2.0 * alpha / (t * t)
         self._velocity_gain = 2.0 / t
@@ -59,8 +57,6 @@ class TrackingController(LeafSystem):
         position = (R_BW @ x_hat[:3]).tolist()
         velocity = (R_BW @ x_hat[3:]).tolist()
         kp, kv, r = self._neg_position_gain, self._velocity_gain, self._q_star_floats
-        if self._world_frame:
-            r = (R_BW @ self._q_star).tolist()
         u1 = np.array([kp * (position[i] - r[i]) - kv * velocity[i] for i in range(3)])
         if self._max_acceleration is not None:  # |R u1| = |u1|
             u1_norm = float(np.sqrt(u1 @ u1))
