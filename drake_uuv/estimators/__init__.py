@@ -12,11 +12,17 @@ filtered estimate at step k, direct feedthrough of the measurement only),
 from drake_uuv.estimators.base import RelativeStateEstimator
 from drake_uuv.estimators.factory import make_estimator
 from drake_uuv.estimators.kalman_filter import RangeDifferenceKalmanFilter
+from drake_uuv.estimators.linear_start import LinearStartEstimator
+from drake_uuv.estimators.particle_filter import ParticleRangeEstimator
 from drake_uuv.estimators.raw_range_filter import RawRangeEstimator
+from drake_uuv.estimators.unscented_filter import UnscentedRangeEstimator
 
 __all__ = [
+    "LinearStartEstimator",
+    "ParticleRangeEstimator",
     "RangeDifferenceKalmanFilter",
     "RawRangeEstimator",
     "RelativeStateEstimator",
+    "UnscentedRangeEstimator",
     "make_estimator",
 ]

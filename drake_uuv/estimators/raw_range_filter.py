@@ -1,39 +1,30 @@
 """EKF and iterated EKF on both raw ranges, started by the paper's linear KF."""
 
-import math
-from typing import Self
-
 import numpy as np
-from pydrake.systems.framework import Context, DiscreteValues
+from pydrake.systems.framework import Context
 
-from drake_uuv.estimators.base import FilteredEstimate, MeasurementUpdate, RelativeStateEstimator
-from drake_uuv.models.filters import (
-    HandoverPolicy,
-    RangeUpdate,
-    ekf_update,
-    iekf_update,
-    raw_range_update,
+from drake_uuv.estimators.linear_start import (  # noqa: F401 (re-exported)
+    LINEAR_PHASE,
+    RANGE_PHASE,
+    LinearStartEstimator,
 )
-from drake_uuv.models.measurement import VALID, range_difference_noise
+from drake_uuv.models.filters import HandoverPolicy, RangeUpdate, ekf_update, iekf_update
+from drake_uuv.models.handover import HandoverRule
 from drake_uuv.scenario import Iekf, Scenario
 
 #: The range update of each method.
 UPDATES: dict[str, RangeUpdate] = {"ekf": ekf_update, "iekf": iekf_update}
 
-# The start-phase state (discrete-state group 2): [phase, linear updates done].
-LINEAR_PHASE, RANGE_PHASE = 1.0, 0.0
 
-
-class RawRangeEstimator(RelativeStateEstimator):
+class RawRangeEstimator(LinearStartEstimator):
     """An EKF (``method="ekf"``) or iterated EKF (``"iekf"``) on the two raw ranges.
 
     The paper's ``Y = ½(d1² − d2²)`` keeps only ``q_sᵀ q``; the two ranges also carry the
     distance. This filter uses them directly, with all ``f`` samples: the per-sonar sample
-    means ``z_i`` are sufficient, with covariance ``R = diag(η1/f, η2/f)``, and
-    ``h(x) = [|q + ½ q_s|, |q − ½ q_s|]``. Updates are
-    :func:`~drake_uuv.models.filters.ekf_update` or
-    :func:`~drake_uuv.models.filters.iekf_update` (Joseph form), through
-    :func:`~drake_uuv.models.filters.raw_range_update`. With one sonar
+    means ``z_i`` are sufficient, with covariance ``R = diag(η1/f, η2/f)``
+    (:func:`~drake_uuv.models.measurement.range_noise_covariance`), ``h(x) = [|q + ½ q_s|,
+    |q − ½ q_s|]``. Updates are :func:`~drake_uuv.models.filters.ekf_update` or
+    :func:`~drake_uuv.models.filters.iekf_update` (Joseph form). With one sonar
     returning, it updates with that one range (NIS with 1 degree of freedom); with none, it
     only predicts. Timing, prediction, the NIS gate and the common ports are those of
     :class:`~drake_uuv.estimators.base.RelativeStateEstimator`.
@@ -48,22 +39,35 @@ class RawRangeEstimator(RelativeStateEstimator):
     ``Y`` is *exactly* linear in ``q``, so the paper's KF converges from any prior without a
     linearisation point, and its covariance is exact for its second moments. So the filter
     begins as that KF (on ``Y = ½(z1² − z2²)`` from the same sample means, its noise mean and
-    variance from the same noise model as the sonar's,
-    :func:`~drake_uuv.models.measurement.range_difference_noise`, with variances ``η/f``) and
-    hands over, one way, to the raw ranges when
-    :class:`~drake_uuv.models.filters.HandoverPolicy` says so:
-    ``trace(P_qq)`` below a threshold (0.5 m² by default: second-order range error ≈ 0.03 m,
-    under the 0.1 m noise; hand-over at step ≈ 30 from the paper's prior, no divergence from
-    any of the priors tried), or after ``max_linear_steps`` linear updates if that is set.
-    By default it is not: where the linear KF cannot converge (a fixed attitude leaves two
-    directions unobservable) a forced hand-over linearises a covariance of thousands of m²
-    and the loop blows up, while staying linear the filter is the paper's KF. The linear
-    start needs both ranges: a step with one sonar only predicts. A multi-hypothesis or batch
-    start would cost more and buy nothing here: the KF's own covariance says when it is done.
+    variance from the sonar's own :func:`~drake_uuv.models.measurement.range_difference_noise`
+    with variances ``η/f``, so there is one noise model) and hands over, one way, to the
+    raw ranges (:class:`~drake_uuv.estimators.linear_start.LinearStartEstimator`) when the
+    hand-over says so:
 
-    Discrete state: groups 0 and 1 as in the base class; group 2 ``[phase, linear updates]``
-    with phase :data:`LINEAR_PHASE` (1) or :data:`RANGE_PHASE` (0), advanced in
-    :meth:`advance_extra_state` (an update counts when it was applied: VALID, not gated).
+    * :class:`~drake_uuv.models.handover.HandoverRule` (the default,
+      ``second_order_tolerance=1``): once the prior's share of the KF's covariance is below
+      10 %, the cross-range angle ``√tr(P⊥)/d`` below 0.25 rad, which scales with the range
+      and, through the KF's covariance, with the noise, and the second-order range error
+      ``tr(P⊥)/(2d)`` below the range noise σ/√f the EKF drops it against (see
+      :mod:`drake_uuv.models.handover`): it hands over at 14 and 28 m, and at 2.8 m only where
+      the KF's spread is narrow enough that the EKF's own steady state will not slip onto
+      the mirror solution (never at σ = 1 m, in 14 of 40 numpy runs at σ = 0.5 m).
+    * :class:`~drake_uuv.models.filters.HandoverPolicy` (``handover: threshold``): the first
+      raw-range EKF's ``trace(P_qq)`` below a threshold (0.5 m² by default: second-order range
+      error ≈ 0.03 m, under the 0.1 m noise; hand-over at step ≈ 30 from the paper's prior),
+      or after ``max_linear_steps`` linear updates if that is set. The threshold is
+      absolute: with σ = 0.5 or 1 m of range noise or at 14 m the KF never reaches it and the
+      filter stays the paper's KF.
+
+    Neither forces a hand-over by default: where the linear KF cannot converge (a fixed
+    attitude leaves two directions unobservable) a forced hand-over linearises a covariance
+    of thousands of m² and the loop blows up, while staying linear the filter is the
+    paper's KF. The linear start needs both ranges: a step with one sonar only predicts.
+
+    Discrete state: as :class:`~drake_uuv.estimators.linear_start.LinearStartEstimator`
+    (groups 0 and 1 of the base class; group 2 ``[phase, linear updates]`` with phase
+    :data:`LINEAR_PHASE` (1) or :data:`RANGE_PHASE` (0); group 3 the prior's share of the
+    KF's covariance, used by :class:`~drake_uuv.models.handover.HandoverRule`).
 
     .. pydrake_system::
 
@@ -83,7 +87,8 @@ class RawRangeEstimator(RelativeStateEstimator):
 
     - ``range_samples`` (2f): sonar 1's f samples then sonar 2's [m]; NaN without a return.
     - ``b_W`` (3): world sonar baseline ``q_s = R_WB b``.
-    - Common ports (``sonar_status``, ``u1_W``, the outputs): see the base class.
+    - Common ports (``sonar_status``, ``u1_W`` or ``p_WU``, ``v_WU``, the outputs): see the
+      base class.
     """
 
     def __init__(
@@ -96,7 +101,7 @@ class RawRangeEstimator(RelativeStateEstimator):
         samples_per_step: int = 1,
         method: str = "ekf",
         noise_model: str = "derived",
-        handover: HandoverPolicy | None = None,
+        handover: HandoverPolicy | HandoverRule | None = None,
         gate_probability: float | None = None,
         vehicle_motion: str = "commanded",
     ) -> None:
@@ -107,24 +112,19 @@ class RawRangeEstimator(RelativeStateEstimator):
             acceleration_covariance,
             initial_estimate,
             initial_covariance,
+            noise_variances,
+            samples_per_step,
+            noise_model,
+            handover,
             gate_probability,
             vehicle_motion,
         )
         self._method = method
         self._update = UPDATES[method]
-        self._f = int(samples_per_step)
-        self._eta = np.asarray(noise_variances, dtype=float).reshape(2)
-        self._noise_model = noise_model
-        range_difference_noise(noise_model, self._eta, np.ones(2))  # Fail early.
-        self._policy = handover if handover is not None else HandoverPolicy()
-        phase = LINEAR_PHASE if self._policy.linear_start else RANGE_PHASE
-        self._start_index = self.DeclareDiscreteState(np.array([phase, 0.0]))
-        self._samples_port = self.DeclareVectorInputPort("range_samples", 2 * self._f)
-        self._b_W_port = self.DeclareVectorInputPort("b_W", 3)
-        self._declare_common_ports([self._samples_port, self._b_W_port])
+        self._declare_ports()
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario) -> Self:
+    def from_scenario(cls, scenario: Scenario) -> "RawRangeEstimator":
         """The filter of ``scenario.estimator`` (an :class:`~drake_uuv.scenario.Ekf` or
         :class:`~drake_uuv.scenario.Iekf`)."""
         e = scenario.estimator
@@ -137,53 +137,27 @@ class RawRangeEstimator(RelativeStateEstimator):
             scenario.sonar.samples_per_step,
             method="iekf" if isinstance(e, Iekf) else "ekf",
             noise_model=e.noise_model,
-            handover=HandoverPolicy(
-                position_variance_threshold=e.linear_start_position_variance,
-                max_linear_steps=e.linear_start_max_steps,
-            ),
+            handover=e.handover_rule(),
             gate_probability=e.gate_probability,
             vehicle_motion=e.vehicle_motion,
         )
+
+    def default_handover(self) -> HandoverRule:
+        """:class:`~drake_uuv.models.handover.HandoverRule` with the second-order test: the
+        EKF drops the ranges' second-order term."""
+        return HandoverRule(second_order_tolerance=1.0)
 
     @property
     def method(self) -> str:
         return self._method
 
-    @property
-    def handover(self) -> HandoverPolicy:
-        return self._policy
-
-    @property
-    def start_state_index(self) -> int:
-        """The discrete-state group ``[phase, linear updates done]``."""
-        return self._start_index
-
-    def in_linear_phase(self, context: Context) -> bool:
-        """Whether this step's update is the linear start's."""
-        return context.get_discrete_state(self._start_index).get_value()[0] == LINEAR_PHASE
-
-    def measurement_update(
-        self, context: Context, x_prior: np.ndarray, P_prior: np.ndarray, status: np.ndarray
-    ) -> MeasurementUpdate | None:
-        update = raw_range_update(
-            x_prior,
-            P_prior,
-            self._samples_port.Eval(context).reshape(2, self._f),
-            np.asarray(status) == VALID,
-            self._b_W_port.Eval(context),
-            self._eta,
-            linear_phase=self.in_linear_phase(context),
-            noise_model=self._noise_model,
-            update=self._update,
-        )
-        return None if update is None else MeasurementUpdate(*update)
-
-    def advance_extra_state(
-        self, context: Context, filtered: FilteredEstimate, discrete_state: DiscreteValues
-    ) -> None:
-        phase, done = context.get_discrete_state(self._start_index).get_value()
-        if phase == LINEAR_PHASE and filtered.status == VALID and math.isfinite(filtered.nis):
-            done += 1
-            if self._policy.handover_due(filtered.P, int(done)):
-                phase = RANGE_PHASE
-        discrete_state.set_value(self._start_index, np.array([phase, done]))
+    def range_update(
+        self,
+        context: Context,
+        x_prior: np.ndarray,
+        P_prior: np.ndarray,
+        z: np.ndarray,
+        q_s: np.ndarray,
+        sonars: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        return self._update(x_prior, P_prior, z, q_s, self._R, sonars=sonars)

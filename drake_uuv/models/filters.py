@@ -10,9 +10,9 @@ One implementation shared by every estimator LeafSystem:
   the one that returned, Joseph form.
 * :func:`iekf_update` — iterated EKF: Gauss–Newton on the MAP cost with a backtracking
   step limit, Joseph form at the final iterate.
-* :func:`raw_range_update` with :class:`HandoverPolicy` — one measurement step of a raw-range
-  filter from the sonars' samples: linear KF updates until the position covariance is small,
-  then the (I)EKF, on the sonars that returned.
+* :class:`HandoverPolicy` — the first raw-range filter's absolute hand-over threshold from
+  its linear-KF start (the current rule is :class:`drake_uuv.models.handover.HandoverRule`;
+  the start itself is :class:`drake_uuv.estimators.linear_start.LinearStartEstimator`).
 
 Every update returns ``(x, P, nis)`` where ``nis = νᵀ S⁻¹ ν`` is the normalised innovation
 squared of the *prior* innovation (χ² with 1 degree of freedom for the linear update, 2 for
@@ -44,7 +44,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from drake_uuv.models.measurement import (
-    range_difference_noise,
     range_jacobian,
     range_measurement,
 )
@@ -87,7 +86,7 @@ def range_difference_update(
     ``C = [q_sᵀ, 0]``; ``K = P Cᵀ (C P Cᵀ + Γ)⁻¹``; ``Υ̂ = Υ̂⁻ + K (Y − C Υ̂⁻ − m)``; the
     covariance in Joseph form ``(I − KC) P (I − KC)ᵀ + K Γ Kᵀ`` (symmetrised), which stays
     symmetric positive definite under rounding. ``m`` and ``Γ`` are the mean and variance of
-    the noise ``v̄`` (:func:`drake_uuv.sensors.dual_sonar.range_difference_noise`). Returns
+    the noise ``v̄`` (:func:`drake_uuv.models.measurement.range_difference_noise`). Returns
     ``(x, P, nis)`` with ``nis = ν²/S`` (χ²₁ when consistent).
     """
     PCt = P_pred[:, :3] @ q_s
@@ -256,49 +255,3 @@ class HandoverPolicy:
         if linear_steps_done < self.min_linear_steps:
             return False
         return float(np.trace(P[:3, :3])) <= self.position_variance_threshold
-
-
-def raw_range_update(
-    x_pred: np.ndarray,
-    P_pred: np.ndarray,
-    range_samples: np.ndarray,
-    available: np.ndarray,
-    q_s: np.ndarray,
-    noise_variances: np.ndarray,
-    *,
-    linear_phase: bool,
-    noise_model: str = "derived",
-    update: RangeUpdate = ekf_update,
-) -> tuple[np.ndarray, np.ndarray, float, int] | None:
-    """One measurement step of a raw-range filter, or None when there is nothing to use.
-
-    ``range_samples`` (2×f) holds each sonar's f samples (NaN without a return) and
-    ``available`` (2, bool) which sonars returned. Both phases use the per-sonar sample means
-    ``z`` (sufficient statistic, covariance ``R = diag(η/f)``):
-
-    * ``linear_phase``: the paper's KF update :func:`range_difference_update` on
-      ``Y = ½(z1² − z2²)``, its noise mean and variance from ``noise_model`` with variances
-      ``η/f`` (:func:`~drake_uuv.models.measurement.range_difference_noise`); it needs both
-      sonars, so a step with one return only predicts (None);
-    * otherwise ``update`` (:func:`ekf_update` or :func:`iekf_update`) on the sonars that
-      returned.
-
-    Returns ``(x, P, nis, dof)`` with ``dof`` the innovation's dimension. Whether the next
-    update is still linear is the caller's decision (:meth:`HandoverPolicy.handover_due`).
-    """
-    samples = np.asarray(range_samples, dtype=float)
-    valid = np.asarray(available, dtype=bool) & np.all(np.isfinite(samples), axis=1)
-    if not valid.any():
-        return None
-    z = samples.mean(axis=1)
-    variances = np.asarray(noise_variances, dtype=float).reshape(2) / samples.shape[1]
-    if linear_phase:
-        if not valid.all():
-            return None  # Y needs both ranges; predict until both return.
-        m, gamma = range_difference_noise(noise_model, variances, z * z)
-        Y = 0.5 * (z[0] * z[0] - z[1] * z[1])
-        x, P, nis = range_difference_update(x_pred, P_pred, Y, m, gamma, q_s)
-        return x, P, nis, 1
-    sonars = np.flatnonzero(valid)
-    x, P, nis = update(x_pred, P_pred, z, q_s, np.diag(variances), sonars=sonars)
-    return x, P, nis, int(sonars.size)

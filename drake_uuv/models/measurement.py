@@ -37,6 +37,20 @@ def range_measurement(x: np.ndarray, q_s: np.ndarray) -> np.ndarray:
     return np.array([np.linalg.norm(q + half), np.linalg.norm(q - half)])
 
 
+def batch_ranges(q: np.ndarray, q_s: np.ndarray) -> np.ndarray:
+    """The ranges ``[|q + ½ q_s|, |q − ½ q_s|]`` of many relative positions at once.
+
+    ``q`` is 3×N (one position per column, e.g. particles or sigma points); returns 2×N.
+    From ``|q ± ½ q_s|² = |q|² ± q_sᵀ q + ¼|q_s|²``: one squared norm and one projection for
+    both sonars.
+    """
+    q_s = np.asarray(q_s, dtype=float).reshape(3)
+    squared = np.einsum("ij,ij->j", q, q) + 0.25 * float(q_s @ q_s)
+    projection = q_s @ q
+    squared = np.stack([squared + projection, squared - projection])
+    return np.sqrt(np.maximum(squared, 0.0, out=squared), out=squared)
+
+
 def range_jacobian(x: np.ndarray, q_s: np.ndarray) -> np.ndarray:
     """Return ``H = ∂[d1, d2]/∂x`` (shape ``(2, 6)``).
 

@@ -10,6 +10,9 @@ from typing import ClassVar
 
 import numpy as np
 
+from drake_uuv.models.filters import HandoverPolicy
+from drake_uuv.models.handover import HandoverRule
+from drake_uuv.models.particle_filter import ParticleFilterParameters
 from drake_uuv.scenario.validation import (
     check_choice,
     check_positive,
@@ -20,6 +23,7 @@ from drake_uuv.scenario.validation import (
 )
 
 NOISE_MODELS = ("derived", "paper_printed")
+HANDOVERS = ("rule", "threshold")
 
 
 def _identity(n: int) -> list[list[float]]:
@@ -78,34 +82,122 @@ class PaperKf(EstimatorOptions):
 
 @dataclass
 class RawRangeOptions(EstimatorOptions):
-    """Fields of the filters on the two raw ranges, which start as the paper's linear KF."""
+    """Fields of the filters on the two raw ranges, which start as the paper's linear KF.
+
+    The linear start hands over to the raw ranges once (``handover``):
+
+    - ``rule`` (the default): the prior's share of the KF's position covariance is at most
+      ``handover_prior_share`` (the estimate rests on the measurements, not on the prior) and
+      every cross-range angle √tr(P⊥)/d is at most ``handover_angle`` [rad] (a linearisation
+      at the estimate holds); it scales with the noise and the range, so it holds in every
+      regime (see ``drake_uuv/models/handover.py`` for the rule and its measurements);
+    - ``threshold``: the first raw-range EKF's ``trace(P_qq) ≤
+      linear_start_position_variance`` [m²], which a far or noisy target never reaches.
+
+    ``linear_start_max_steps`` forces the hand-over after that many linear updates (None:
+    never; 0: no linear start).
+    """
 
     planning_measurement: ClassVar[str] = "ranges"
 
-    # The linear start hands over once trace(P_qq) ≤ linear_start_position_variance [m²], or
-    # after linear_start_max_steps linear updates (None: no forced hand-over; 0: no linear
-    # start). See drake_uuv/estimators/raw_range_filter.py.
+    handover: str = "rule"
+    handover_prior_share: float = 0.1
+    handover_angle: float | None = 0.25
     linear_start_position_variance: float = 0.5
     linear_start_max_steps: int | None = None
 
     def validate(self, name: str) -> None:
         super().validate(name)
+        check_choice(f"{name}.handover", self.handover, HANDOVERS)
+        check_positive(f"{name}.handover_prior_share", self.handover_prior_share)
+        if self.handover_angle is not None:
+            check_positive(f"{name}.handover_angle", self.handover_angle)
         check_positive(
             f"{name}.linear_start_position_variance", self.linear_start_position_variance
         )
         if self.linear_start_max_steps is not None and self.linear_start_max_steps < 0:
             fail(f"{name}.linear_start_max_steps", "must be ≥ 0", self.linear_start_max_steps)
 
+    def handover_rule(self) -> HandoverRule | HandoverPolicy:
+        """The hand-over these fields describe."""
+        if self.handover == "threshold":
+            return HandoverPolicy(
+                position_variance_threshold=self.linear_start_position_variance,
+                max_linear_steps=self.linear_start_max_steps,
+            )
+        return HandoverRule(
+            angle_tolerance=self.handover_angle,
+            prior_share=self.handover_prior_share,
+            max_linear_steps=self.linear_start_max_steps,
+            second_order_tolerance=getattr(self, "handover_second_order", None),
+        )
+
 
 @dataclass
-class Ekf(RawRangeOptions):
+class LinearizedRangeOptions(RawRangeOptions):
+    """Fields of the filters that linearise the ranges (EKF, IEKF)."""
+
+    # Such a filter drops the ranges' second-order term: the rule also requires
+    # tr(P⊥)/(2d) ≤ handover_second_order · σ/√f (None: no such test).
+    handover_second_order: float | None = 1.0
+
+    def validate(self, name: str) -> None:
+        super().validate(name)
+        if self.handover_second_order is not None:
+            check_positive(f"{name}.handover_second_order", self.handover_second_order)
+
+
+@dataclass
+class Ekf(LinearizedRangeOptions):
     """Extended Kalman filter on both raw ranges, all f samples."""
 
 
 @dataclass
-class Iekf(RawRangeOptions):
+class Iekf(LinearizedRangeOptions):
     """Iterated EKF (Gauss–Newton with a backtracking step) on both raw ranges."""
 
 
+@dataclass
+class Ukf(RawRangeOptions):
+    """Unscented Kalman filter on both raw ranges (scaled unscented transform, α = 1, β = 2,
+    κ = 3 − n: sigma points at ±√3 σ, every weight positive)."""
+
+
+@dataclass
+class ParticleFilter(RawRangeOptions):
+    """Regularised particle filter on both raw ranges: with a large count, the empirical
+    optimum. Its particles are drawn from the linear start's Gaussian at the hand-over, which
+    needs no angle test (particles carry a curved posterior)."""
+
+    handover_angle: float | None = None
+    particle_count: int = 5000
+    # Resample when the effective sample size falls below this fraction of the count.
+    particle_resample_threshold: float = 0.5
+    # The regularisation kernel's bandwidth, times the Gaussian kernel's optimal one (0: none).
+    particle_bandwidth_scale: float = 1.0
+
+    def validate(self, name: str) -> None:
+        super().validate(name)
+        if not 10 <= self.particle_count <= 10_000_000:
+            fail(f"{name}.particle_count", "must be in [10, 1e7]", self.particle_count)
+        if not 0.0 <= self.particle_resample_threshold <= 1.0:
+            fail(f"{name}.particle_resample_threshold", "must be in [0, 1]",
+                 self.particle_resample_threshold)  # fmt: skip
+        check_positive(
+            f"{name}.particle_bandwidth_scale", self.particle_bandwidth_scale, strict=False
+        )
+        if self.linear_start_max_steps == 0:
+            fail(f"{name}.linear_start_max_steps",
+                 "must not be 0: the particles are drawn from the linear start", 0)  # fmt: skip
+
+    def parameters(self) -> ParticleFilterParameters:
+        """The particle filter's parameters these fields describe."""
+        return ParticleFilterParameters(
+            count=self.particle_count,
+            resample_threshold=self.particle_resample_threshold,
+            bandwidth_scale=self.particle_bandwidth_scale,
+        )
+
+
 #: The estimator slot. The first member is the default of an untagged section.
-EstimatorConfig = PaperKf | Ekf | Iekf
+EstimatorConfig = PaperKf | Ekf | Iekf | Ukf | ParticleFilter

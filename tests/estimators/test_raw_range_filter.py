@@ -16,6 +16,7 @@ from drake_uuv.models.filters import (
     predict,
     range_difference_update,
 )
+from drake_uuv.models.handover import HandoverRule
 from drake_uuv.models.measurement import (
     DROPPED,
     OUT_OF_BEAM,
@@ -170,7 +171,9 @@ def test_hand_over_happens_and_the_system_tracks_the_numpy_steps() -> None:
     covariance and phase equal those of the numpy steps composed here (linear KF on the
     sample means until the hand-over policy says so, then the EKF), and it hands over once."""
     rng = np.random.default_rng(7)
-    system = RawRangeEstimator(T, W, np.zeros(6), np.eye(6), ETA, F, method="ekf")
+    system = RawRangeEstimator(
+        T, W, np.zeros(6), np.eye(6), ETA, F, method="ekf", handover=HandoverPolicy()
+    )
     context = system.CreateDefaultContext()
     A, B = double_integrator(T)
     Q = process_noise_covariance(W, T)
@@ -232,4 +235,9 @@ def test_make_estimator_builds_the_raw_range_filters(kind: str, tag: str) -> Non
     system = make_estimator(scenario)
     assert isinstance(system, RawRangeEstimator) and system.method == kind
     assert system.GetInputPort("range_samples").size() == 8
-    assert system.handover == HandoverPolicy(0.5, 1, 50)
+    assert system.handover == HandoverRule(max_linear_steps=50, second_order_tolerance=1.0)
+    threshold = load_scenario(
+        "paper", [f"estimator=!{tag}", "estimator.handover=threshold",
+                  "estimator.linear_start_position_variance=0.3"]
+    )  # fmt: skip
+    assert make_estimator(threshold).handover == HandoverPolicy(0.3, 1, None)

@@ -9,7 +9,6 @@ from drake_uuv.models.filters import (
     iekf_update,
     predict,
     range_difference_update,
-    raw_range_update,
 )
 from drake_uuv.models.measurement import range_difference_noise, range_measurement
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
@@ -139,67 +138,6 @@ def test_iekf_reaches_the_map_estimate_from_a_poor_prior():
         for e in np.eye(6)
     ]
     np.testing.assert_allclose(gradient, 0.0, atol=1e-5)
-
-
-def test_raw_range_update_phases() -> None:
-    rng = np.random.default_rng(5)
-    x_pred = np.array([-2.0, -2.0, 0.0, 0.0, 0.0, 0.0])
-    P_pred = 0.1 * np.eye(6)
-    q_s = np.array([-1.0, 1.0, 0.0])
-    eta = np.array([0.01, 0.02])
-    f = 4
-    samples = range_measurement(x_pred, q_s)[:, None] + 0.1 * rng.standard_normal((2, f))
-    z = samples.mean(axis=1)
-    R = np.diag(eta / f)
-    both = np.array([True, True])
-
-    linear = raw_range_update(x_pred, P_pred, samples, both, q_s, eta, linear_phase=True)
-    expected = range_difference_update(x_pred, P_pred, *_y_measurement(z, eta / f), q_s)
-    for a, b in zip(linear, (*expected, 1), strict=True):
-        np.testing.assert_allclose(a, b)
-    ekf = raw_range_update(x_pred, P_pred, samples, both, q_s, eta, linear_phase=False)
-    for a, b in zip(ekf, (*ekf_update(x_pred, P_pred, z, q_s, R), 2), strict=True):
-        np.testing.assert_allclose(a, b)
-    iekf = raw_range_update(
-        x_pred, P_pred, samples, both, q_s, eta, linear_phase=False, update=iekf_update
-    )
-    for a, b in zip(iekf, (*iekf_update(x_pred, P_pred, z, q_s, R), 2), strict=True):
-        np.testing.assert_allclose(a, b)
-    # The printed noise model changes only the linear start's m and Γ.
-    printed = raw_range_update(
-        x_pred, P_pred, samples, both, q_s, eta, linear_phase=True, noise_model="paper_printed"
-    )
-    m, Gamma = range_difference_noise("paper_printed", eta / f, z * z)
-    expected = range_difference_update(x_pred, P_pred, 0.5 * (z[0] ** 2 - z[1] ** 2), m, Gamma, q_s)
-    np.testing.assert_allclose(printed[0], expected[0])
-
-
-def test_raw_range_update_with_one_sonar() -> None:
-    """One return: the EKF updates on that range alone (1 dof); the linear start predicts."""
-    x_pred = np.array([-2.0, -2.0, 0.0, 0.0, 0.0, 0.0])
-    P_pred = 0.1 * np.eye(6)
-    q_s = np.array([-1.0, 1.0, 0.0])
-    eta = np.array([0.01, 0.01])
-    samples = np.array([[range_measurement(x_pred, q_s)[0] + 0.05], [np.nan]])
-    only_first = np.array([True, False])
-    assert (
-        raw_range_update(x_pred, P_pred, samples, only_first, q_s, eta, linear_phase=True) is None
-    )
-    x, P, nis, dof = raw_range_update(
-        x_pred, P_pred, samples, only_first, q_s, eta, linear_phase=False
-    )
-    expected = ekf_update(x_pred, P_pred, samples[:, 0], q_s, np.diag(eta), sonars=(0,))
-    np.testing.assert_allclose(x, expected[0])
-    np.testing.assert_allclose(P, expected[1])
-    assert (nis, dof) == (pytest.approx(expected[2]), 1)
-    # A NaN sample counts as no return even when the status says valid.
-    assert (
-        raw_range_update(
-            x_pred, P_pred, np.full((2, 1), np.nan), np.array([True, True]), q_s, eta,
-            linear_phase=False,
-        )
-        is None
-    )  # fmt: skip
 
 
 def test_handover_policy() -> None:

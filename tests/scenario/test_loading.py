@@ -73,7 +73,7 @@ def test_yaml_file_path(tmp_path) -> None:
         ("tracking=!LqrTracking [1, 2]", r"^tracking: !LqrTracking takes a mapping of fields, got \[1, 2\]"),
         ("tracking.type=lqr", r"^tracking.type: unknown field 'type' in 'tracking' \(fields of !PaperTracking: desired_relative_position, reference_frame, max_acceleration, alpha, allow_unproven_alpha\); to change the variant, --set tracking=!Name \(!PaperTracking, !LqrTracking\)"),
         ("attitude.mode=fixed", r"^attitude.mode: unknown field 'mode' in 'attitude'.*--set attitude=!Name \(!TrajectoryAttitude, !RandomAttitude, !FixedAttitude, !InformationSeeking\)"),
-        ("estimator.type=ekf", r"^estimator.type: unknown field 'type' in 'estimator'.*--set estimator=!Name \(!PaperKf, !Ekf, !Iekf\)"),
+        ("estimator.type=ekf", r"^estimator.type: unknown field 'type' in 'estimator'.*--set estimator=!Name \(!PaperKf, !Ekf, !Iekf, !Ukf, !ParticleFilter\)"),
         ("sonar.baseline=!Foo [1, 2, 3]", r"^sonar.baseline: takes no !tag, got !Foo"),
         ("steps=abc", r"^steps: must be an integer, got 'abc'"),
         ("steps=0", r"^steps: must be in \[1, 1e8\], got 0"),

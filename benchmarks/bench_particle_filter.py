@@ -1,0 +1,75 @@
+"""Cost of the particle filter: a 500-step paper run in the Drake loop, and the numpy steps.
+
+For each particle count, builds the closed loop with ``estimator.type=particle`` once and
+times ``--runs`` seeded runs (simulation and metrics, as ``drake-uuv run`` reports them),
+then times the two numpy steps alone (:func:`pf_update`, the filtered output, and
+:func:`pf_predict` with resampling, the periodic update) on a cloud of that size. Target: the
+default count's paper run under 10 s.
+
+    python benchmarks/bench_particle_filter.py [--counts 1000 5000 20000 50000] [--runs 2]
+"""
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from drake_uuv.models.motion import double_integrator
+from drake_uuv.models.particle_filter import (
+    ParticleFilterParameters,
+    initial_particles,
+    pf_predict,
+    pf_update,
+)
+from drake_uuv.scenario import load_scenario
+from drake_uuv.simulation import ClosedLoopSimulation
+
+
+def numpy_step_ms(count: int, repeats: int = 20) -> tuple[float, float]:
+    """Milliseconds of one update and one predict (resampling every time) for ``count``."""
+    rng = np.random.default_rng(0)
+    A, B = double_integrator(0.5)
+    W = np.diag([0.004, 0.001, 0.001])
+    x = np.array([-2.0, -2.0, 0.3, 0.0, 0.0, 0.0])
+    particles = initial_particles(x, np.diag([0.1, 0.1, 0.1, 0.01, 0.01, 0.01]), count, rng)
+    log_w = np.full(count, -math.log(count))
+    q_s = np.array([-1.0, 1.0, 0.0])
+    z = np.array([np.linalg.norm(x[:3] + q_s / 2), np.linalg.norm(x[:3] - q_s / 2)])
+    R = np.diag([0.01, 0.01])
+    params = ParticleFilterParameters(count=count, resample_threshold=1.0)
+    start = time.perf_counter()
+    for _ in range(repeats):
+        *_, log_post = pf_update(particles, log_w, z, q_s, R)
+    middle = time.perf_counter()
+    for _ in range(repeats):
+        pf_predict(particles, log_post, np.zeros(3), A, B, W, rng, params)
+    end = time.perf_counter()
+    return (middle - start) / repeats * 1e3, (end - middle) / repeats * 1e3
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--counts", type=int, nargs="+", default=[1000, 5000, 20000, 50000])
+    parser.add_argument("--runs", type=int, default=2)
+    args = parser.parse_args()
+    print(f"{'count':>7} {'run [s]':>8} {'RMSE [m]':>9} {'update [ms]':>12} {'predict [ms]':>13}")
+    for count in args.counts:
+        scenario = load_scenario(
+            "paper", ["estimator.type=particle", f"estimator.particle_count={count}"]
+        )
+        simulation = ClosedLoopSimulation(scenario)
+        walls, rmse = [], []
+        for seed in range(args.runs):
+            result = simulation.run(seed)
+            walls.append(result.metrics["wall_time_s"])
+            rmse.append(result.metrics["position_rmse"])
+        update, predict = numpy_step_ms(count)
+        print(
+            f"{count:7d} {np.mean(walls):8.2f} {np.mean(rmse):9.3f} {update:12.2f} {predict:13.2f}",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()
