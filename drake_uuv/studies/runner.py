@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from drake_uuv.metrics import errors, run_information
 from drake_uuv.monitor import SimulationFailure
@@ -82,12 +83,15 @@ def run_seeds(scenario: Scenario, seeds: Sequence[int]) -> dict[str, Any]:
     (:func:`information_exponent`); None if any entry is not finite or a run failed.
     """
     simulation = cached_simulation(scenario)
+    # One BLAS thread per worker: a run's matrices are small (6×6, at most 6×N particles),
+    # and two workers each spawning a thread per core slowed a particle filter 30-fold.
+    blas = threadpool_limits(limits=1, user_api="blas")
     start = scenario.steady_state_start
     rows: list[dict[str, float]] = []
     norms = []
     exponent = information_exponent(scenario)
     information: np.ndarray | None = np.zeros((scenario.steps, 3, 3), dtype=np.int64)
-    with np.errstate(all="ignore"):
+    with blas, np.errstate(all="ignore"):
         for seed in seeds:
             try:
                 result = simulation.run(int(seed))
