@@ -138,7 +138,8 @@ def tracking_law_variants() -> list[Variant]:
 
 def vehicle_variants() -> list[Variant]:
     """The paper's closed loop and a configuration the vehicle can fly, each on the paper's
-    kinematic plant and on the 8-thruster hovering UUV (``!HoveringAuv``).
+    kinematic plant and on the 8-thruster hovering UUV (``!HoveringAuv``), with the filter's
+    two ways of accounting for the vehicle's own motion.
 
     - ``paper-*``: Algorithm 2 and the paper's tracking law, q* fixed in the body.
     - ``feasible-*``: the LQR law with q* fixed in the world, the rate limit, acceleration
@@ -149,14 +150,22 @@ def vehicle_variants() -> list[Variant]:
     - ``slow-*``: the feasible configuration and a target the vehicle can follow: the paper's
       W scaled by 0.166 (:func:`~drake_uuv.models.vehicle_envelope.followable_target_scale`,
       three digits), so that the target's RMS speed at the last step is the envelope's speed
-      budget (0.38 m/s) instead of 0.88 m/s; the paper's target outruns the vehicle's 0.76 m/s
-      in about a third of the steady-state steps.
-    - ``*-inflated``: the filter's process noise inflated by what the vehicle does not follow
-      of its commanded acceleration, ``estimator.added_acceleration_variance =
-      model_acceleration_rmse² / 3`` with the RMS over the 30 runs (seeds 0–29) of the same
+      budget (0.38 m/s) instead of 0.88 m/s. It separates the target's speed from the filter:
+      with a target the vehicle keeps up with, the vehicle follows its commands and even the
+      commanded prediction holds.
+    - ``*-vehicle``: the filter predicts with the commanded acceleration ``R u1``
+      (``estimator.vehicle_motion=commanded``, the paper's), which the vehicle follows only
+      as far as its thrusters allow.
+    - ``*-inflated``: the same, with the filter's process noise inflated by what the vehicle
+      does not follow of its commanded acceleration, ``estimator.added_acceleration_variance
+      = model_acceleration_rmse² / 3`` with the RMS over the 30 runs (seeds 0–29) of the same
       configuration on the vehicle without inflation. The paper's configuration gets none:
-      its commands are a hundred times what the thrusters deliver, and no process noise makes
-      a filter of a vehicle that does not move as commanded useful.
+      its commands are a hundred times what the thrusters deliver.
+    - ``*-navigation``: the filter predicts the target and takes the vehicle's state from its
+      navigation (``estimator.vehicle_motion=navigation``; the paper assumes the vehicle's
+      state known), exact whatever the vehicle did of its commands. On the kinematic plant it
+      gives the same estimates as the commanded prediction, so the ``*-kinematic`` rows serve
+      as the reference of both.
     """
     group = "vehicle: paper and feasible configuration, kinematic plant and hovering UUV"
     paper = ("tracking=!PaperTracking", "attitude=!TrajectoryAttitude")
@@ -175,12 +184,14 @@ def vehicle_variants() -> list[Variant]:
         "target.acceleration_covariance=[[0.000664, 0, 0], [0, 0.000166, 0], [0, 0, 0.000166]]",
     )
     vehicle = "plant=!HoveringAuv"
+    navigation = "estimator.vehicle_motion=navigation"
     # model_acceleration_rmse² / 3 [m²/s⁴] (see above): RMS 0.2530 m/s² over feasible-vehicle's
     # runs, 0.2780 m/s² over hull-vehicle's (drake-uuv compare --group vehicle --runs 30).
     inflation = {"feasible": 0.02133, "hull": 0.02577}
     rows = [
         Variant("paper-kinematic", group, paper, "paper"),
         Variant("paper-vehicle", group, (*paper, vehicle), "paper"),
+        Variant("paper-vehicle-navigation", group, (*paper, vehicle, navigation), "paper, nav."),
     ]
     for name, overrides in (("feasible", feasible), ("hull", hull)):
         rows += [
@@ -196,10 +207,22 @@ def vehicle_variants() -> list[Variant]:
                 ),
                 f"{name}, σ² = {inflation[name]:.3g} m²/s⁴",
             ),
+            Variant(
+                f"{name}-vehicle-navigation",
+                group,
+                (*overrides, vehicle, navigation),
+                f"{name}, nav.",
+            ),
         ]
     rows += [
         Variant("slow-kinematic", group, slow, "feasible, W × 0.166"),
         Variant("slow-vehicle", group, (*slow, vehicle), "feasible, W × 0.166"),
+        Variant(
+            "slow-vehicle-navigation",
+            group,
+            (*slow, vehicle, navigation),
+            "feasible, W × 0.166, nav.",
+        ),
     ]
     return rows
 
