@@ -1,6 +1,6 @@
 """Cost of the particle filter: a 500-step paper run in the Drake loop, and the numpy steps.
 
-For each particle count, builds the closed loop with ``estimator.type=particle`` once and
+For each particle count, builds the closed loop with ``estimator=!ParticleFilter`` once and
 times ``--runs`` seeded runs (simulation and metrics, as ``drake-uuv run`` reports them),
 then times the two numpy steps alone (:func:`pf_update`, the filtered output, and
 :func:`pf_predict` with resampling, the periodic update) on a cloud of that size. Target: the
@@ -56,7 +56,7 @@ def main() -> None:
     print(f"{'count':>7} {'run [s]':>8} {'RMSE [m]':>9} {'update [ms]':>12} {'predict [ms]':>13}")
     for count in args.counts:
         scenario = load_scenario(
-            "paper", ["estimator.type=particle", f"estimator.particle_count={count}"]
+            "paper", ["estimator=!ParticleFilter", f"estimator.particle_count={count}"]
         )
         simulation = ClosedLoopSimulation(scenario)
         walls, rmse = [], []
