@@ -136,12 +136,60 @@ def tracking_law_variants() -> list[Variant]:
     ]
 
 
+# Rotation budgets [rad per step] of the attitude group: a quarter and a half of Algorithm 2's
+# mean rotation per step in the paper scenario (0.381 rad), and about all of it.
+ATTITUDE_BUDGETS = (0.1, 0.2, 0.39)
+ATTITUDE_GROUP = "attitude: Algorithm 2 against the information-seeking planner, equal rotation"
+
+
+def attitude_budget_variants(budgets: Sequence[float] = ATTITUDE_BUDGETS) -> list[Variant]:
+    """Algorithm 2 unlimited, then for each budget B [rad per step] Algorithm 2 rate-limited to
+    B (``attitude.max_angular_rate = B / t``, so no step turns more than B) and the
+    information-seeking planner with ``max_angle_per_step = B``: under the paper's KF and the
+    raw-range EKF. Same seeds for all, so the rows pair run by run.
+
+    ``t`` is the paper scenario's ``time_step`` (0.5 s); a base override of the time step
+    would change the rate-limited rows' budget, not the planner's.
+    """
+    t = load_scenario("paper").time_step
+    rows = []
+    for estimator in ("PaperKf", "Ekf"):
+        name, chosen = short_name(estimator), f"estimator=!{estimator}"
+        rows.append(
+            Variant(
+                f"{name}-alg2", ATTITUDE_GROUP, (chosen, "attitude=!TrajectoryAttitude"), "unlimited"
+            )
+        )
+        for budget in budgets:
+            note = f"{budget:g} rad/step"
+            rows += [
+                Variant(
+                    f"{name}-alg2-{budget:g}",
+                    ATTITUDE_GROUP,
+                    (
+                        chosen,
+                        "attitude=!TrajectoryAttitude",
+                        f"attitude.max_angular_rate={budget / t!r}",
+                    ),
+                    note,
+                ),
+                Variant(
+                    f"{name}-info-{budget:g}",
+                    ATTITUDE_GROUP,
+                    (chosen, f"attitude=!InformationSeeking {{max_angle_per_step: {budget!r}}}"),
+                    note,
+                ),
+            ]
+    return rows
+
+
 # Group name → its variants. Other features add groups here.
 VARIANT_GROUPS: dict[str, Callable[[], list[Variant]]] = {
     "attitude_noise": attitude_noise_variants,
     "alpha": alpha_sweep_variants,
     "estimator": estimator_attitude_variants,
     "tracking": tracking_law_variants,
+    "attitude": attitude_budget_variants,
 }
 
 # Columns of the tables: (CSV name, Markdown header, summary key, format).
