@@ -157,7 +157,10 @@ def attitude_budget_variants(budgets: Sequence[float] = ATTITUDE_BUDGETS) -> lis
         name, chosen = short_name(estimator), f"estimator=!{estimator}"
         rows.append(
             Variant(
-                f"{name}-alg2", ATTITUDE_GROUP, (chosen, "attitude=!TrajectoryAttitude"), "unlimited"
+                f"{name}-alg2",
+                ATTITUDE_GROUP,
+                (chosen, "attitude=!TrajectoryAttitude"),
+                "unlimited",
             )
         )
         for budget in budgets:
