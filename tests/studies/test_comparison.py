@@ -7,7 +7,18 @@ import numpy as np
 import pytest
 from study_helpers import SHORT
 
-from drake_uuv.scenario import ALPHA_PROVEN_INTERVAL, Scenario, variants
+from drake_uuv.diagram import make_uuv_diagram
+from drake_uuv.scenario import (
+    ALPHA_PROVEN_INTERVAL,
+    Ekf,
+    InformationSeeking,
+    PaperKf,
+    Scenario,
+    TrajectoryAttitude,
+    load_scenario,
+    variants,
+)
+from drake_uuv.simulation import ClosedLoopSimulation
 from drake_uuv.studies import (
     ESTIMATOR_GROUP,
     VARIANT_GROUPS,
@@ -144,3 +155,48 @@ def test_compare_runs_each_variant_and_tabulates_its_summary(tmp_path):
         assert not (folder / "figures").exists()  # compare draws no band figures
     fixed = json.loads((tmp_path / "studies" / "fixed" / "study.json").read_text())
     assert fixed["scenario"]["attitude"] == {"variant": "FixedAttitude"}
+
+
+BUDGET_ROWS = ("alg2", "alg2-0.1", "info-0.1", "alg2-0.2", "info-0.2", "alg2-0.39", "info-0.39")
+
+
+def test_attitude_group_pairs_each_budget_with_algorithm_2_limited_to_it_and_builds():
+    variants = VARIANT_GROUPS["attitude"]()
+    assert [v.name for v in variants] == [
+        f"{e}-{row}" for e in ("kf", "ekf") for row in BUDGET_ROWS
+    ]
+    for variant in variants:
+        scenario = load_scenario("paper", list(variant.overrides))
+        expected = {"kf": PaperKf, "ekf": Ekf}[variant.name.split("-")[0]]
+        assert type(scenario.estimator) is expected, variant.name
+        attitude = scenario.attitude
+        kind, _, budget = variant.name.partition("-")[2].partition("-")
+        if kind == "info":
+            assert type(attitude) is InformationSeeking
+            assert attitude.max_angle_per_step == float(budget)
+            assert variant.note == f"{budget} rad/step"
+        elif budget:
+            assert type(attitude) is TrajectoryAttitude
+            # The rate limit turns by at most the budget in one time step.
+            assert attitude.max_angular_rate * scenario.time_step == pytest.approx(
+                float(budget), rel=1e-15
+            )
+            assert variant.note == f"{budget} rad/step"
+        else:
+            assert type(attitude) is TrajectoryAttitude and attitude.max_angular_rate is None
+        make_uuv_diagram(scenario, log=False)  # every system of the variant builds and wires
+
+
+def test_attitude_group_rows_of_a_budget_turn_by_at_most_it_and_the_limit_binds():
+    rows = {v.name: v for v in VARIANT_GROUPS["attitude"]()}
+    peaks = {}
+    for name in ("kf-alg2", "kf-alg2-0.1", "kf-info-0.1", "ekf-info-0.2"):
+        scenario = load_scenario("paper", [*SHORT, *rows[name].overrides])
+        peaks[name] = ClosedLoopSimulation(scenario).run(seed=3).metrics["rotation_peak"]
+    # Unlimited, Algorithm 2 turns far more than 0.1 rad in some step (h(k) swings the
+    # baseline's elevation by ±0.5 |b| every 6 steps), so the limit of 0.1 rad binds ...
+    assert peaks["kf-alg2"] > 0.3
+    assert peaks["kf-alg2-0.1"] == pytest.approx(0.1, abs=1e-9)
+    # ... and the planner stays within its budget.
+    assert peaks["kf-info-0.1"] <= 0.1 + 1e-9
+    assert peaks["ekf-info-0.2"] <= 0.2 + 1e-9
