@@ -186,6 +186,50 @@ def attitude_budget_variants(budgets: Sequence[float] = ATTITUDE_BUDGETS) -> lis
     return rows
 
 
+# [rad/s] The hovering UUV's angular rate that never saturates its thrusters with the loop
+# below: drake_uuv.models.vehicle_limits.utilisation_budget of 0.3 rad/s (and steps of it),
+# 0.6 m/s², any tilt and speeds up to 0.38 m/s uses at most 0.84 of the worst thruster's
+# thrust (1.0 rad/s works in practice, with a few ticks saturated, but is not guaranteed).
+VEHICLE_ANGULAR_RATE = 0.3
+# A loop the vehicle can fly (top speed 0.76 m/s, 3.33 m/s² in its worst direction): the LQR
+# law limited to 0.6 m/s², Bryson weights for 0.38 m/s of speed error (half the top speed,
+# 1/0.38² ≈ 6.918) and 0.6 m/s² (1/0.6² ≈ 2.778), and q* fixed in the world. A q* in the body
+# or the heading turns with the attitude and asks |q*| ω of speed, 0.85 m/s at 0.3 rad/s for
+# the paper's |q*| = 2.83 m, beyond the top speed before the target's own drift is added.
+VEHICLE_LOOP = (
+    "tracking=!LqrTracking",
+    "tracking.reference_frame=world",
+    "tracking.max_acceleration=0.6",
+    "tracking.velocity_weight=6.918",
+    "tracking.input_weight=2.778",
+)
+ATTITUDE_VEHICLE_GROUP = "attitude on the hovering UUV: equal rotation within its rate limit"
+
+
+def attitude_vehicle_variants() -> list[Variant]:
+    """Algorithm 2 rate-limited to :data:`VEHICLE_ANGULAR_RATE` against the planner with the
+    same rotation per step (``rate · t``), under the paper's KF and :data:`VEHICLE_LOOP`, on
+    the 8-thruster hovering UUV (``!HoveringAuv``) and, for reference, the paper's kinematic
+    plant. ``t`` is the paper scenario's ``time_step`` (0.5 s)."""
+    t = load_scenario("paper").time_step
+    budget = VEHICLE_ANGULAR_RATE * t
+    note = f"{budget:g} rad/step"
+    attitudes = {
+        "alg2": ("attitude=!TrajectoryAttitude", f"attitude.max_angular_rate={budget / t!r}"),
+        "info": (f"attitude=!InformationSeeking {{max_angle_per_step: {budget!r}}}",),
+    }
+    return [
+        Variant(
+            f"{plant}-{kind}-{budget:g}",
+            ATTITUDE_VEHICLE_GROUP,
+            ("estimator=!PaperKf", *VEHICLE_LOOP, *chosen, *extra),
+            note,
+        )
+        for plant, extra in (("kinematic", ()), ("auv", ("plant=!HoveringAuv",)))
+        for kind, chosen in attitudes.items()
+    ]
+
+
 # Group name → its variants. Other features add groups here.
 VARIANT_GROUPS: dict[str, Callable[[], list[Variant]]] = {
     "attitude_noise": attitude_noise_variants,
@@ -193,6 +237,7 @@ VARIANT_GROUPS: dict[str, Callable[[], list[Variant]]] = {
     "estimator": estimator_attitude_variants,
     "tracking": tracking_law_variants,
     "attitude": attitude_budget_variants,
+    "attitude_vehicle": attitude_vehicle_variants,
 }
 
 # Columns of the tables: (CSV name, Markdown header, summary key, format).
