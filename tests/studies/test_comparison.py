@@ -2,16 +2,21 @@
 
 import csv
 import json
+import math
 
 import numpy as np
 import pytest
 from study_helpers import SHORT
 
 from drake_uuv.diagram import make_uuv_diagram
+from drake_uuv.models.vehicle_limits import utilisation_budget
 from drake_uuv.scenario import (
     ALPHA_PROVEN_INTERVAL,
     Ekf,
+    HoveringAuv,
     InformationSeeking,
+    KinematicUuv,
+    LqrTracking,
     PaperKf,
     Scenario,
     TrajectoryAttitude,
@@ -33,6 +38,7 @@ from drake_uuv.studies import (
     selected_variants,
 )
 from drake_uuv.studies import comparison as comparison_module
+from drake_uuv.studies.comparison import VEHICLE_ANGULAR_RATE
 
 
 def _summary(runs: int = 4, **values) -> dict:
@@ -200,3 +206,40 @@ def test_attitude_group_rows_of_a_budget_turn_by_at_most_it_and_the_limit_binds(
     # ... and the planner stays within its budget.
     assert peaks["kf-info-0.1"] <= 0.1 + 1e-9
     assert peaks["ekf-info-0.2"] <= 0.2 + 1e-9
+
+
+def test_attitude_vehicle_group_compares_at_the_vehicle_rate_on_both_plants():
+    variants = VARIANT_GROUPS["attitude_vehicle"]()
+    names = ["kinematic-alg2-0.15", "kinematic-info-0.15", "auv-alg2-0.15", "auv-info-0.15"]
+    assert [v.name for v in variants] == names
+    for variant in variants:
+        scenario = load_scenario("paper", list(variant.overrides))
+        plant = HoveringAuv if variant.name.startswith("auv") else KinematicUuv
+        assert type(scenario.plant) is plant and type(scenario.estimator) is PaperKf
+        assert type(scenario.tracking) is LqrTracking
+        assert scenario.tracking.reference_frame == "world"
+        assert scenario.tracking.max_acceleration == 0.6
+        if "-info-" in variant.name:
+            assert scenario.attitude.max_angle_per_step == pytest.approx(
+                VEHICLE_ANGULAR_RATE * scenario.time_step, rel=1e-15
+            )
+        else:
+            assert type(scenario.attitude) is TrajectoryAttitude
+            assert scenario.attitude.max_angular_rate == pytest.approx(VEHICLE_ANGULAR_RATE)
+        make_uuv_diagram(scenario, log=False)
+
+
+def test_vehicle_rate_and_acceleration_limit_leave_thrust_to_spare():
+    vehicle = HoveringAuv()
+    budget = utilisation_budget(
+        vehicle.vehicle_model(),
+        vehicle.allocator(),
+        acceleration=0.6,  # tracking.max_acceleration of the group's loop
+        speed=0.38,  # the speed its Bryson weight allows
+        angular_rate=VEHICLE_ANGULAR_RATE,
+        rate_step=VEHICLE_ANGULAR_RATE,
+        tilt=math.pi / 2,  # the largest restoring moment
+        attitude_bandwidth=vehicle.attitude_bandwidth,
+        attitude_damping_ratio=vehicle.attitude_damping_ratio,
+    )
+    assert 0.8 < budget["total"] < 0.85
