@@ -12,4 +12,6 @@ from typing import Any
 
 Section = Callable[[Path, Path, int, dict[str, Any]], str]
 
-SECTIONS: list[Section] = []
+from results_sections import attitude  # noqa: E402  (after Section, which it does not need)
+
+SECTIONS: list[Section] = [attitude.section]
