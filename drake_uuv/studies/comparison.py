@@ -31,6 +31,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from drake_uuv.io import write_text_atomic
 from drake_uuv.scenario import (
     ALPHA_PROVEN_INTERVAL,
@@ -191,11 +193,13 @@ def attitude_budget_variants(budgets: Sequence[float] = ATTITUDE_BUDGETS) -> lis
 # 0.6 m/s², any tilt and speeds up to 0.38 m/s uses at most 0.84 of the worst thruster's
 # thrust (1.0 rad/s works in practice, with a few ticks saturated, but is not guaranteed).
 VEHICLE_ANGULAR_RATE = 0.3
+# [m/s] The speed the loop plans for: half the vehicle's 0.76 m/s top speed.
+VEHICLE_SPEED_BUDGET = 0.38
 # A loop the vehicle can fly (top speed 0.76 m/s, 3.33 m/s² in its worst direction): the LQR
-# law limited to 0.6 m/s², Bryson weights for 0.38 m/s of speed error (half the top speed,
-# 1/0.38² ≈ 6.918) and 0.6 m/s² (1/0.6² ≈ 2.778), and q* fixed in the world. A q* in the body
-# or the heading turns with the attitude and asks |q*| ω of speed, 0.85 m/s at 0.3 rad/s for
-# the paper's |q*| = 2.83 m, beyond the top speed before the target's own drift is added.
+# law limited to 0.6 m/s², Bryson weights for 0.38 m/s of speed error (1/0.38² ≈ 6.918) and
+# 0.6 m/s² (1/0.6² ≈ 2.778), and q* fixed in the world. A q* in the body or the heading turns
+# with the attitude and asks |q*| ω of speed, 0.85 m/s at 0.3 rad/s for the paper's
+# |q*| = 2.83 m, beyond the top speed before the target's own drift is added.
 VEHICLE_LOOP = (
     "tracking=!LqrTracking",
     "tracking.reference_frame=world",
@@ -206,14 +210,36 @@ VEHICLE_LOOP = (
 ATTITUDE_VEHICLE_GROUP = "attitude on the hovering UUV: equal rotation within its rate limit"
 
 
+def followable_target_scale(scenario: Scenario, speed: float = VEHICLE_SPEED_BUDGET) -> float:
+    """The factor on the target's acceleration covariance W that makes its RMS speed at the
+    last step equal to ``speed``.
+
+    The target's velocity is a random walk, ``v(k) = v(0) + t Σ a(j)`` with ``a ~ N(0, W)``,
+    so ``E|v(N−1)|² = |v(0)|² + (N−1) t² trace W``; the paper's target reaches 0.88 m/s RMS,
+    and outruns a vehicle whose top speed is 0.76 m/s.
+    """
+    v0 = np.asarray(scenario.target.initial_velocity, dtype=float)
+    walk = (scenario.steps - 1) * scenario.time_step**2
+    walk *= float(np.trace(np.asarray(scenario.target.acceleration_covariance)))
+    if speed**2 <= v0 @ v0:
+        raise ValueError(f"speed: {speed!r} is not above the target's initial speed")
+    return (speed**2 - float(v0 @ v0)) / walk
+
+
 def attitude_vehicle_variants() -> list[Variant]:
     """Algorithm 2 rate-limited to :data:`VEHICLE_ANGULAR_RATE` against the planner with the
     same rotation per step (``rate · t``), under the paper's KF and :data:`VEHICLE_LOOP`, on
     the 8-thruster hovering UUV (``!HoveringAuv``) and, for reference, the paper's kinematic
-    plant. ``t`` is the paper scenario's ``time_step`` (0.5 s)."""
-    t = load_scenario("paper").time_step
+    plant, with the paper's target slowed to one the vehicle can follow: W scaled by
+    :func:`followable_target_scale` (three digits), both in the target and in the filter.
+    ``t`` and W are the paper scenario's (0.5 s)."""
+    paper = load_scenario("paper")
+    t = paper.time_step
     budget = VEHICLE_ANGULAR_RATE * t
     note = f"{budget:g} rad/step"
+    scale = float(f"{followable_target_scale(paper):.3g}")
+    W = (scale * np.asarray(paper.target.acceleration_covariance)).tolist()
+    target = f"target.acceleration_covariance={[[float(f'{w:.6g}') for w in r] for r in W]}"
     attitudes = {
         "alg2": ("attitude=!TrajectoryAttitude", f"attitude.max_angular_rate={budget / t!r}"),
         "info": (f"attitude=!InformationSeeking {{max_angle_per_step: {budget!r}}}",),
@@ -222,8 +248,8 @@ def attitude_vehicle_variants() -> list[Variant]:
         Variant(
             f"{plant}-{kind}-{budget:g}",
             ATTITUDE_VEHICLE_GROUP,
-            ("estimator=!PaperKf", *VEHICLE_LOOP, *chosen, *extra),
-            note,
+            ("estimator=!PaperKf", *VEHICLE_LOOP, target, *chosen, *extra),
+            f"{note}, W × {scale:g}",
         )
         for plant, extra in (("kinematic", ()), ("auv", ("plant=!HoveringAuv",)))
         for kind, chosen in attitudes.items()
