@@ -38,7 +38,11 @@ from drake_uuv.studies import (
     selected_variants,
 )
 from drake_uuv.studies import comparison as comparison_module
-from drake_uuv.studies.comparison import VEHICLE_ANGULAR_RATE
+from drake_uuv.studies.comparison import (
+    VEHICLE_ANGULAR_RATE,
+    VEHICLE_SPEED_BUDGET,
+    followable_target_scale,
+)
 
 
 def _summary(runs: int = 4, **values) -> dict:
@@ -219,6 +223,13 @@ def test_attitude_vehicle_group_compares_at_the_vehicle_rate_on_both_plants():
         assert type(scenario.tracking) is LqrTracking
         assert scenario.tracking.reference_frame == "world"
         assert scenario.tracking.max_acceleration == 0.6
+        # The target, and the filter's model of it, slowed to one the vehicle can follow.
+        np.testing.assert_allclose(
+            scenario.target.acceleration_covariance,
+            0.166 * np.asarray(load_scenario("paper").target.acceleration_covariance),
+            rtol=1e-12,
+        )
+        assert variant.note == "0.15 rad/step, W × 0.166"
         if "-info-" in variant.name:
             assert scenario.attitude.max_angle_per_step == pytest.approx(
                 VEHICLE_ANGULAR_RATE * scenario.time_step, rel=1e-15
@@ -243,3 +254,23 @@ def test_vehicle_rate_and_acceleration_limit_leave_thrust_to_spare():
         attitude_damping_ratio=vehicle.attitude_damping_ratio,
     )
     assert 0.8 < budget["total"] < 0.85
+
+
+def test_followable_target_scale_gives_the_speed_budget_as_rms_final_speed():
+    paper = load_scenario("paper")
+    scale = followable_target_scale(paper)
+    v0 = np.asarray(paper.target.initial_velocity)
+    W = scale * np.asarray(paper.target.acceleration_covariance)
+    # Closed form: |v(0)|² + (N − 1) t² trace(s W) = 0.38².
+    walk = (paper.steps - 1) * paper.time_step**2 * np.trace(W)
+    assert v0 @ v0 + walk == pytest.approx(VEHICLE_SPEED_BUDGET**2, rel=1e-12)
+    # Seeded: the targets' final speed, v(0) + t Σ a(j) over N − 1 steps, a ~ N(0, s W).
+    n, steps = 4000, paper.steps - 1
+    rng = np.random.default_rng(1)
+    sums = rng.standard_normal((n, 3)) * np.sqrt(steps * np.diag(W))  # Σ a(j), per axis
+    speed2 = np.sum((v0 + paper.time_step * sums) ** 2, axis=1)
+    variances = paper.time_step**2 * steps * np.diag(W)  # of each final velocity component
+    std = np.sqrt(np.sum(2.0 * variances**2 + 4.0 * v0**2 * variances) / n)
+    assert abs(speed2.mean() - VEHICLE_SPEED_BUDGET**2) < 4.0 * std
+    with pytest.raises(ValueError, match=r"^speed: 0.1 is not above the target's initial speed"):
+        followable_target_scale(paper, speed=0.1)
