@@ -29,6 +29,7 @@ from drake_uuv.studies.comparison import (  # noqa: E402
     ATTITUDE_BUDGETS,
     VEHICLE_ANGULAR_RATE,
     VEHICLE_LOOP,
+    VEHICLE_SPEED_BUDGET,
     attitude_budget_variants,
     attitude_vehicle_variants,
 )
@@ -92,7 +93,7 @@ def _table(rows: list[_Row], vehicle: bool = False) -> str:
         s = row.summary
         cells = [
             f"`{row.variant.name}`",
-            row.variant.note.removesuffix(" rad/step") or "unlimited",
+            row.variant.note.split(" rad/step")[0] or "unlimited",
             str(s["runs"]),
             _with_interval(s, "position_rmse"),
             _with_interval(s, "position_rmse_over_per_run_pcrlb"),
@@ -283,6 +284,13 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
         attitude_damping_ratio=vehicle_model.attitude_damping_ratio,
     )["total"]
     sweep = float(np.linalg.norm(rows["kf-alg2"].scenario.tracking.desired_relative_position))
+    paper = rows["kf-alg2"].scenario
+    scale = auv.target.acceleration_covariance[0][0] / paper.target.acceleration_covariance[0][0]
+    v0 = np.asarray(paper.target.initial_velocity)
+    paper_speed = math.sqrt(
+        v0 @ v0
+        + (paper.steps - 1) * paper.time_step**2 * np.trace(paper.target.acceleration_covariance)
+    )
     loop = " ".join(f"`--set {o}`" for o in VEHICLE_LOOP)
     main_command = f"drake-uuv compare --group attitude --runs {runs}"
     vehicle_command = f"drake-uuv compare --group attitude_vehicle --runs {vehicle_runs}"
@@ -352,7 +360,14 @@ speed) and {tracking.max_acceleration:g} m/s² keep the commands within its thru
 the world because a q* in the body (or the heading) turns with the attitude and asks
 |q*| ω = {sweep * VEHICLE_ANGULAR_RATE:.2f} m/s of speed at {VEHICLE_ANGULAR_RATE:g} rad/s,
 beyond the top speed before the target's drift is added; in the world frame the attitude turns
-without moving the vehicle.
+without moving the vehicle. The target is slowed to one the vehicle can follow: the paper's
+target's velocity is a random walk whose RMS reaches {paper_speed:.2f} m/s at the last step,
+more than the vehicle's top speed, and a vehicle that falls behind leaves a filter that trusts
+its commanded acceleration behind too; here its W is scaled by {scale:.3g} (in the target and
+in the filter), so that the RMS speed at the last step is {VEHICLE_SPEED_BUDGET:g} m/s.
+"thrust saturated": the share of the 50 Hz ticks whose wrench the allocation scaled down;
+"attitude error": |Log(R_cmd R_WBᵀ)| at the outer ticks (both means over runs of the
+steady-state window).
 
 {_table([vrows[n] for n in vnames], vehicle=True)}
 {PAIR_HEADER}{chr(10).join(vpairs)}
