@@ -1,10 +1,11 @@
 """Paired per-seed comparison of two Monte Carlo study folders (their runs.csv).
 
-    drake-uuv montecarlo --runs 100 --workers 2 --out out/alg2_kf
-    drake-uuv montecarlo --runs 100 --workers 2 --out out/info039_kf \\
-        --set attitude.mode=information --set attitude.max_angle_per_step=0.39
-    python scripts/study_information_attitude.py out/alg2_kf out/info039_kf \\
-        --require-reduction 0.2 --excitation-floor 1.0
+    drake-uuv compare --group attitude --runs 100 --workers 2 --out out/attitude
+    python scripts/study_information_attitude.py out/attitude/studies/kf-alg2 \\
+        out/attitude/studies/kf-info-0.39 --require-reduction 0.2 --excitation-floor 1.0
+
+(or any two ``drake-uuv montecarlo --out`` folders, e.g. one with
+``--set 'attitude=!InformationSeeking {max_angle_per_step: 0.39}'``).
 
 Runs are paired by seed (run i of a study uses seed random_seed + i, so two studies with the
 same first seed and run count share every target trajectory and every noise draw that both
@@ -16,12 +17,19 @@ of seeds where the candidate is lower; then, where runs.csv has them, the attitu
 and peak rotation per step, the smallest excitation eigenvalue over every window of every
 run and the peak reference acceleration.
 
+A seed is left out of the pairing when either run was stopped by the estimator-health
+monitor (``failed``); how many runs each side lost that way is printed and returned, since
+leaving them out flatters the side that lost them.
+
 Checks, each optional; the exit status is 1 if one fails:
 
 * ``--require-reduction R``: the pooled metric is at least ``R`` (a fraction) lower and the
   difference's interval lies below zero;
 * ``--require-no-worse``: the candidate's pooled metric is not above the baseline's;
 * ``--excitation-floor F``: the candidate's smallest excitation eigenvalue is at least F.
+
+The functions are importable (the results page's attitude section uses
+:func:`compare_folders` and :func:`format_result`).
 """
 
 import argparse
@@ -30,6 +38,7 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -120,6 +129,74 @@ def attitude_summary(runs: dict[str, np.ndarray]) -> dict[str, float]:
     }
 
 
+def compare_folders(
+    baseline_folder: Path,
+    candidate_folder: Path,
+    metric: str = "position_rmse",
+    require_reduction: float | None = None,
+    require_no_worse: bool = False,
+    excitation_floor: float | None = None,
+) -> dict[str, Any]:
+    """The paired comparison of two study folders and the checks asked for (see the module
+    notes); ``result["checks"]`` maps each check's label to whether it passed."""
+    baseline, candidate = read_runs(baseline_folder), read_runs(candidate_folder)
+    seeds, b, c, excluded = pair(baseline, candidate, metric)
+    result: dict[str, Any] = {
+        "metric": metric,
+        "baseline_study": str(baseline_folder),
+        "candidate_study": str(candidate_folder),
+        "excluded_seeds": excluded,
+        "baseline_failed": failed_runs(baseline),
+        "candidate_failed": failed_runs(candidate),
+        "first_seed": int(seeds[0]),
+        **paired_comparison(b, c),
+        "baseline_attitude": attitude_summary(baseline),
+        "candidate_attitude": attitude_summary(candidate),
+    }
+    checks: dict[str, bool] = {}
+    if require_reduction is not None:
+        checks[f"reduction ≥ {require_reduction:g}, interval below 0"] = (
+            result["reduction"] >= require_reduction and result["mean_difference_ci95"][1] < 0.0
+        )
+    if require_no_worse:
+        checks["candidate not worse"] = result["candidate"] <= result["baseline"]
+    if excitation_floor is not None:
+        low = result["candidate_attitude"].get("excitation_min", math.nan)
+        checks[f"excitation ≥ {excitation_floor:g} m²"] = bool(low >= excitation_floor)
+    result["checks"] = checks
+    return result
+
+
+def failed_runs(runs: dict[str, np.ndarray]) -> int:
+    """How many runs of a study the estimator-health monitor stopped."""
+    return int(np.sum(runs["failed"] != 0.0)) if "failed" in runs else 0
+
+
+def format_result(result: dict[str, Any]) -> str:
+    """The printed lines of a :func:`compare_folders` result."""
+    lo, hi = result["ratio_ci95"]
+    dlo, dhi = result["mean_difference_ci95"]
+    lines = [
+        f"{result['metric']}: {result['runs']} paired seeds from {result['first_seed']} "
+        f"({result['excluded_seeds']} excluded; runs stopped by the monitor: baseline "
+        f"{result['baseline_failed']}, candidate {result['candidate_failed']})",
+        f"  baseline  {result['baseline']:.4f}   {result['baseline_study']}",
+        f"  candidate {result['candidate']:.4f}   {result['candidate_study']}",
+        f"  ratio {result['ratio']:.3f} [{lo:.3f}, {hi:.3f}]  "
+        f"(reduction {result['reduction']:.1%})",
+        f"  per-seed difference {result['mean_difference']:+.4f} [{dlo:+.4f}, {dhi:+.4f}], "
+        f"candidate lower in {result['candidate_lower_fraction']:.0%}",
+    ]
+    for name, _, label in ATTITUDE_COLUMNS:
+        values = [result[f"{side}_attitude"].get(name) for side in ("baseline", "candidate")]
+        if any(v is not None for v in values):
+            text = "  ".join("—" if v is None else f"{v:.3f}" for v in values)
+            lines.append(f"  {label}: {text}")
+    for label, passed in result["checks"].items():
+        lines.append(f"  check {label}: {'pass' if passed else 'FAIL'}")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__.splitlines()[0], formatter_class=argparse.RawDescriptionHelpFormatter
@@ -133,52 +210,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, help="also write the result here")
     args = parser.parse_args(argv)
 
-    baseline, candidate = read_runs(args.baseline), read_runs(args.candidate)
-    seeds, b, c, excluded = pair(baseline, candidate, args.metric)
-    result = {
-        "metric": args.metric,
-        "baseline_study": str(args.baseline),
-        "candidate_study": str(args.candidate),
-        "excluded_seeds": excluded,
-        "first_seed": int(seeds[0]),
-        **paired_comparison(b, c),
-        "baseline_attitude": attitude_summary(baseline),
-        "candidate_attitude": attitude_summary(candidate),
-    }
-    checks: dict[str, bool] = {}
-    if args.require_reduction is not None:
-        checks[f"reduction ≥ {args.require_reduction:g}, interval below 0"] = (
-            result["reduction"] >= args.require_reduction
-            and result["mean_difference_ci95"][1] < 0.0
-        )
-    if args.require_no_worse:
-        checks["candidate not worse"] = result["candidate"] <= result["baseline"]
-    if args.excitation_floor is not None:
-        low = result["candidate_attitude"].get("excitation_min", math.nan)
-        checks[f"excitation ≥ {args.excitation_floor:g} m²"] = bool(low >= args.excitation_floor)
-    result["checks"] = checks
-
-    m = args.metric
-    lo, hi = result["ratio_ci95"]
-    dlo, dhi = result["mean_difference_ci95"]
-    print(f"{m}: {result['runs']} paired seeds from {result['first_seed']} ({excluded} excluded)")
-    print(f"  baseline  {result['baseline']:.4f}   {args.baseline}")
-    print(f"  candidate {result['candidate']:.4f}   {args.candidate}")
-    print(
-        f"  ratio {result['ratio']:.3f} [{lo:.3f}, {hi:.3f}]  (reduction {result['reduction']:.1%})"
+    result = compare_folders(
+        args.baseline,
+        args.candidate,
+        args.metric,
+        require_reduction=args.require_reduction,
+        require_no_worse=args.require_no_worse,
+        excitation_floor=args.excitation_floor,
     )
-    print(f"  per-seed difference {result['mean_difference']:+.4f} [{dlo:+.4f}, {dhi:+.4f}], "
-          f"candidate lower in {result['candidate_lower_fraction']:.0%}")  # fmt: skip
-    for name, _, label in ATTITUDE_COLUMNS:
-        values = [result[f"{side}_attitude"].get(name) for side in ("baseline", "candidate")]
-        if any(v is not None for v in values):
-            text = "  ".join("—" if v is None else f"{v:.3f}" for v in values)
-            print(f"  {label}: {text}")
-    for label, passed in checks.items():
-        print(f"  check {label}: {'pass' if passed else 'FAIL'}")
+    print(format_result(result))
     if args.json is not None:
         args.json.write_text(json.dumps(result, indent=2) + "\n")
-    return 0 if all(checks.values()) else 1
+    return 0 if all(result["checks"].values()) else 1
 
 
 if __name__ == "__main__":

@@ -31,7 +31,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from drake_uuv.io import write_text_atomic
+from drake_uuv.models.vehicle_envelope import followable_target_scale
 from drake_uuv.scenario import (
     ALPHA_PROVEN_INTERVAL,
     NOISE_MODELS,
@@ -136,6 +139,27 @@ def tracking_law_variants() -> list[Variant]:
     ]
 
 
+# [rad/s] The hovering UUV's angular rate that never saturates its thrusters with the loop
+# below: drake_uuv.models.vehicle_limits.utilisation_budget of 0.3 rad/s (and steps of it),
+# 0.6 m/s², any tilt and speeds up to 0.38 m/s uses at most 0.84 of the worst thruster's
+# thrust (1.0 rad/s works in practice, with a few ticks saturated, but is not guaranteed).
+VEHICLE_ANGULAR_RATE = 0.3
+# [m/s] The speed the loop plans for: half the vehicle's 0.76 m/s top speed.
+VEHICLE_SPEED_BUDGET = 0.38
+# A loop the vehicle can fly (top speed 0.76 m/s, 3.33 m/s² in its worst direction): the LQR
+# law limited to 0.6 m/s², Bryson weights for 0.38 m/s of speed error (1/0.38² ≈ 6.918) and
+# 0.6 m/s² (1/0.6² ≈ 2.778), and q* fixed in the world. A q* in the body or the heading turns
+# with the attitude and asks |q*| ω of speed, 0.85 m/s at 0.3 rad/s for the paper's
+# |q*| = 2.83 m, beyond the top speed before the target's own drift is added.
+VEHICLE_LOOP = (
+    "tracking=!LqrTracking",
+    "tracking.reference_frame=world",
+    "tracking.max_acceleration=0.6",
+    "tracking.velocity_weight=6.918",
+    "tracking.input_weight=2.778",
+)
+
+
 def vehicle_variants() -> list[Variant]:
     """The paper's closed loop and a configuration the vehicle can fly, each on the paper's
     kinematic plant and on the 8-thruster hovering UUV (``!HoveringAuv``), with the filter's
@@ -170,13 +194,9 @@ def vehicle_variants() -> list[Variant]:
     group = "vehicle: paper and feasible configuration, kinematic plant and hovering UUV"
     paper = ("tracking=!PaperTracking", "attitude=!TrajectoryAttitude")
     feasible = (
-        "tracking=!LqrTracking",
-        "tracking.reference_frame=world",
-        "tracking.max_acceleration=0.6",
-        "tracking.velocity_weight=6.918",
-        "tracking.input_weight=2.778",
+        *VEHICLE_LOOP,
         "attitude=!TrajectoryAttitude",
-        "attitude.max_angular_rate=0.3",
+        f"attitude.max_angular_rate={VEHICLE_ANGULAR_RATE}",
     )
     hull = (*feasible, "sonar.baseline=[-0.35, 0.35, 0]")
     slow = (
@@ -269,6 +289,93 @@ def regime_variants() -> list[Variant]:
     ]
 
 
+# Rotation budgets [rad per step] of the attitude group: a quarter and a half of Algorithm 2's
+# mean rotation per step in the paper scenario (0.381 rad), and about all of it.
+ATTITUDE_BUDGETS = (0.1, 0.2, 0.39)
+ATTITUDE_GROUP = "attitude: Algorithm 2 against the information-seeking planner, equal rotation"
+
+
+def attitude_budget_variants(budgets: Sequence[float] = ATTITUDE_BUDGETS) -> list[Variant]:
+    """Algorithm 2 unlimited, then for each budget B [rad per step] Algorithm 2 rate-limited to
+    B (``attitude.max_angular_rate = B / t``, so no step turns more than B) and the
+    information-seeking planner with ``max_angle_per_step = B``: under the paper's KF and the
+    raw-range EKF. Same seeds for all, so the rows pair run by run.
+
+    ``t`` is the paper scenario's ``time_step`` (0.5 s); a base override of the time step
+    would change the rate-limited rows' budget, not the planner's.
+    """
+    t = load_scenario("paper").time_step
+    rows = []
+    for estimator in ("PaperKf", "Ekf"):
+        name, chosen = short_name(estimator), f"estimator=!{estimator}"
+        rows.append(
+            Variant(
+                f"{name}-alg2",
+                ATTITUDE_GROUP,
+                (chosen, "attitude=!TrajectoryAttitude"),
+                "unlimited",
+            )
+        )
+        for budget in budgets:
+            note = f"{budget:g} rad/step"
+            rows += [
+                Variant(
+                    f"{name}-alg2-{budget:g}",
+                    ATTITUDE_GROUP,
+                    (
+                        chosen,
+                        "attitude=!TrajectoryAttitude",
+                        f"attitude.max_angular_rate={budget / t!r}",
+                    ),
+                    note,
+                ),
+                Variant(
+                    f"{name}-info-{budget:g}",
+                    ATTITUDE_GROUP,
+                    (chosen, f"attitude=!InformationSeeking {{max_angle_per_step: {budget!r}}}"),
+                    note,
+                ),
+            ]
+    return rows
+
+
+ATTITUDE_VEHICLE_GROUP = "attitude on the hovering UUV: equal rotation within its rate limit"
+
+
+def attitude_vehicle_variants() -> list[Variant]:
+    """Algorithm 2 rate-limited to :data:`VEHICLE_ANGULAR_RATE` against the planner with the
+    same rotation per step (``rate · t``), under the paper's KF and :data:`VEHICLE_LOOP`, on
+    the 8-thruster hovering UUV (``!HoveringAuv``) and, for reference, the paper's kinematic
+    plant, with the paper's target slowed to one the vehicle can follow: W scaled by
+    :func:`~drake_uuv.models.vehicle_envelope.followable_target_scale` for an RMS speed of
+    :data:`VEHICLE_SPEED_BUDGET` at the last step (three digits), both in the target and in
+    the filter.
+    ``t`` and W are the paper scenario's (0.5 s)."""
+    paper = load_scenario("paper")
+    t = paper.time_step
+    budget = VEHICLE_ANGULAR_RATE * t
+    note = f"{budget:g} rad/step"
+    v0, W0 = paper.target.initial_velocity, np.asarray(paper.target.acceleration_covariance)
+    scale = followable_target_scale(v0, W0, t, paper.steps, VEHICLE_SPEED_BUDGET)
+    scale = float(f"{scale:.3g}")
+    W = (scale * W0).tolist()
+    target = f"target.acceleration_covariance={[[float(f'{w:.6g}') for w in r] for r in W]}"
+    attitudes = {
+        "alg2": ("attitude=!TrajectoryAttitude", f"attitude.max_angular_rate={budget / t!r}"),
+        "info": (f"attitude=!InformationSeeking {{max_angle_per_step: {budget!r}}}",),
+    }
+    return [
+        Variant(
+            f"{plant}-{kind}-{budget:g}",
+            ATTITUDE_VEHICLE_GROUP,
+            ("estimator=!PaperKf", *VEHICLE_LOOP, target, *chosen, *extra),
+            f"{note}, W × {scale:g}",
+        )
+        for plant, extra in (("kinematic", ()), ("auv", ("plant=!HoveringAuv",)))
+        for kind, chosen in attitudes.items()
+    ]
+
+
 # Group name → its variants. Other features add groups here.
 VARIANT_GROUPS: dict[str, Callable[[], list[Variant]]] = {
     "attitude_noise": attitude_noise_variants,
@@ -277,6 +384,8 @@ VARIANT_GROUPS: dict[str, Callable[[], list[Variant]]] = {
     "tracking": tracking_law_variants,
     "vehicle": vehicle_variants,
     "regimes": regime_variants,
+    "attitude": attitude_budget_variants,
+    "attitude_vehicle": attitude_vehicle_variants,
 }
 
 # Columns of the tables: (CSV name, Markdown header, summary key, format).

@@ -74,3 +74,13 @@ def test_comparison_numbers_and_checks(studies, tmp_path: Path, capsys) -> None:
 def test_missing_folder_names_it(tmp_path: Path) -> None:
     with pytest.raises(SystemExit, match=r"nowhere/runs.csv: no runs.csv"):
         study.read_runs(tmp_path / "nowhere")
+
+
+def test_compare_folders_counts_the_runs_the_monitor_stopped(studies) -> None:
+    result = study.compare_folders(*studies, require_no_worse=True)
+    assert result["baseline_failed"] == 0 and result["candidate_failed"] == 1
+    assert result["excluded_seeds"] == 1 and result["runs"] == 99
+    assert result["checks"] == {"candidate not worse": True}
+    text = study.format_result(result)
+    assert "(1 excluded; runs stopped by the monitor: baseline 0, candidate 1)" in text
+    assert text.endswith("check candidate not worse: pass")

@@ -11,7 +11,8 @@ def test_an_unknown_group_exits_2_naming_the_known_ones(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err == (
         "drake-uuv: error: --group: unknown group 'bogus' "
-        "(known: attitude_noise, alpha, estimator, tracking, vehicle)\n"
+        "(known: attitude_noise, alpha, estimator, tracking, vehicle, regimes, attitude, "
+        "attitude_vehicle)\n"
     )
     assert not (tmp_path / "compare.md").exists()
 
