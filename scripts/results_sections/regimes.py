@@ -49,6 +49,9 @@ TIMING_SEEDS = (0, 1)
 PEER_LOGS = {"paper": 5, "sigma0.5": 4}
 BOOTSTRAP_RESAMPLES = 2000
 
+# Runs per row at most: the 20000-particle reference costs about 14 s a run.
+REGIME_RUNS = 40
+
 
 def _g(value: float | None, fmt: str = ".3g") -> str:
     return "—" if value is None or not math.isfinite(value) else format(value, fmt)
@@ -244,6 +247,7 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
     """Runs the ``regimes`` group and returns the section's Markdown (see the module notes)."""
     (docs / "figures").mkdir(parents=True, exist_ok=True)
     folder = work / "regimes"
+    runs = min(runs, REGIME_RUNS)
     variants = regime_variants()
     compared = compare(variants, folder, runs, **execution)
     n = {variant.name: numbers(result) for variant, result in compared}

@@ -48,6 +48,8 @@ FIGURE_SEED = 0
 # The acceptance: the vehicle's estimation RMSE within this factor of the kinematic plant's.
 RMSE_RATIO_LIMIT = 1.5
 BOOTSTRAP_RESAMPLES = 2000
+# Runs per row at most: a vehicle run costs about 10 s, and 30 runs resolve the acceptance.
+VEHICLE_RUNS = 30
 # The vehicle rows of each configuration, after its kinematic row.
 _VEHICLE_ROWS = ("vehicle", "vehicle-inflated", "vehicle-navigation")
 
@@ -271,6 +273,7 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
     )
     slow_scale = followable_target_scale(target.initial_velocity, W, t, steps, f.speed_budget)
 
+    runs = min(runs, VEHICLE_RUNS)
     variants = vehicle_variants()
     compared = compare(variants, work / "vehicle", runs, **execution)
     n = {variant.name: _numbers(result) for variant, result in compared}
