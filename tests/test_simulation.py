@@ -89,6 +89,7 @@ def test_measurements_in_the_log_are_the_ones_the_filter_used(paper_run) -> None
     assert_allclose(log["Y"], 0.5 * (log["ranges"][:, 0] ** 2 - log["ranges"][:, 1] ** 2))
 
 
+@pytest.mark.slow
 def test_same_seed_same_log_and_different_seed_different_log(paper) -> None:
     simulation = ClosedLoopSimulation(paper)
     first, again, other = simulation.run(3), simulation.run(3), simulation.run(4)

@@ -112,6 +112,7 @@ def _window(result) -> slice:
     return slice(result.scenario.steady_state_start, None)
 
 
+@pytest.mark.slow
 def test_attitude_metrics_are_those_of_the_logged_attitudes(feasible_run, paper_run) -> None:
     for result in (feasible_run, paper_run):
         log, m, w = result.log, result.metrics, _window(result)
@@ -222,6 +223,7 @@ def motion_runs():
     return {name: ClosedLoopSimulation(s).run(MOTION_SEED) for name, s in runs.items()}
 
 
+@pytest.mark.slow
 def test_navigation_keeps_the_filter_consistent_where_the_commanded_prediction_does_not(
     motion_runs,
 ) -> None:

@@ -42,6 +42,7 @@ def _colour_fraction(path: Path, channel: int) -> float:
     return float(np.mean((rgb[..., channel] > 0.5) & np.all(others < 0.6, axis=-1)))
 
 
+@pytest.mark.slow
 def test_run_figures_are_written_as_png_and_svg_with_content(run, tmp_path):
     paths = write_run_figures(run.log, run.scenario, tmp_path)
     assert sorted(p.name for p in paths) == sorted(
@@ -59,6 +60,7 @@ def test_run_figures_are_written_as_png_and_svg_with_content(run, tmp_path):
     assert _colour_fraction(tmp_path / "trajectory.png", 0) > 1e-4, "no red target trajectory"
 
 
+@pytest.mark.slow
 def test_figures_survive_runs_shorter_than_the_zoom_and_the_window(tmp_path):
     short = simulate(load_scenario("paper", ["steps=12", "steady_state_start=2"]))
     paths = write_run_figures(short.log, short.scenario, tmp_path, formats=("png",))
@@ -90,6 +92,7 @@ def test_sensor_positions_are_half_a_baseline_either_side(run):
     np.testing.assert_allclose(0.5 * (s1 + s2), run.log["p_WU"], atol=1e-12)
 
 
+@pytest.mark.slow
 def test_drake_uuv_run_writes_the_figures(tmp_path):
     status = main(
         ["run", "--out", str(tmp_path), "--set", "steps=30", "--set", "steady_state_start=5"]

@@ -16,6 +16,7 @@ from drake_uuv.scenario import ScenarioError
         (["estimator=!Ekf", "tracking=!LqrTracking"], "ranges"),
     ],
 )
+@pytest.mark.slow
 def test_closed_loop_is_reproducible_and_keeps_the_budget(
     overrides: list[str], measurement: str
 ) -> None:

@@ -10,6 +10,7 @@ import pytest
 from drake_uuv.cli import main
 
 
+@pytest.mark.slow
 def test_run_writes_log_metrics_and_figure(tmp_path) -> None:
     out = tmp_path / "paper"
     status = main(
@@ -31,6 +32,7 @@ def test_run_writes_log_metrics_and_figure(tmp_path) -> None:
     assert (out / "errors.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_seed_option(tmp_path, capsys) -> None:
     status = main(["run", "--out", str(tmp_path / "a"), "--seed", "5", "--set", "steps=20",
                    "--set", "steady_state_start=0"])  # fmt: skip
@@ -63,6 +65,7 @@ def test_bad_input_exits_2_with_one_line(capsys, args: list[str], message: str) 
     assert err.count("\n") == 1 and message in err and "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_python_m_runs_the_command_line_with_its_exit_status(tmp_path) -> None:
     result = subprocess.run(
         [sys.executable, "-m", "drake_uuv.cli", "run", "--set", "attitude=!Bad"],

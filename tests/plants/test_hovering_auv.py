@@ -102,6 +102,7 @@ def test_thrusters_reproduce_the_papers_step() -> None:
     assert np.abs(log["thrust"]).max() < HoveringAuv().max_thrust
 
 
+@pytest.mark.slow
 def test_figures_are_written(tmp_path) -> None:
     log = simulate(make_plant(), np.array([0.3, 0.0, 0.0]), np.array([0.0, 0.3, 0.6]), 12)
     assert plot_attitude_tracking(log, tmp_path / "attitude.png").stat().st_size > 10_000

@@ -1,6 +1,7 @@
 """The paper's kinematic vehicle (eqs. 1–2): ports, one step in closed form, long runs."""
 
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RollPitchYaw, RotationMatrix
@@ -57,6 +58,7 @@ def test_one_step_matches_equations_1_and_2() -> None:
     assert_allclose(R1_plant, R1, atol=1e-14)
 
 
+@pytest.mark.slow
 def test_attitude_stays_orthonormal_over_a_long_run() -> None:
     builder = DiagramBuilder()
     plant = builder.AddSystem(plant_at())

@@ -217,6 +217,7 @@ class SmoothThrust(LeafSystem):
         output.set_value(self._pinv @ wrench)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("time_constant", [0.0, 0.05])
 def test_leaf_system_agrees_with_the_multibody_plant_to_a_micrometre(time_constant: float) -> None:
     # Added mass off (SpatialInertia holds one scalar mass); G off the body origin so that the

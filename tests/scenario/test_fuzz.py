@@ -98,6 +98,7 @@ def test_random_yaml_text(tmp_path, text) -> None:
     _load_and_run(str(path))
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(key=st.sampled_from(FIELDS), text=st.one_of(st.text(max_size=30), st.sampled_from(TAGS)))
 def test_random_set_overrides(key, text) -> None:

@@ -144,6 +144,7 @@ def test_a_study_of_no_runs_is_refused(tmp_path, make_study):
         run_study(make_study(tmp_path, 0), workers=1, **QUIET)
 
 
+@pytest.mark.slow
 def test_an_unreachable_scheduler_is_refused_naming_it():
     dask = pytest.importorskip("dask")
     pytest.importorskip("dask.distributed")

@@ -24,10 +24,13 @@ from drake_uuv.visualization import MeshcatScene, SceneStyle, record_animation
 from drake_uuv.visualization.scene import MESHCAT_DEFAULT_FOV_DEG
 
 CHROMIUM = find_chromium()
-pytestmark = pytest.mark.skipif(
-    CHROMIUM is None,
-    reason="Chromium is not installed (Debian package `chromium`, see .ci/apt-packages.txt)",
-)
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(
+        CHROMIUM is None,
+        reason="Chromium is not installed (Debian package `chromium`, see .ci/apt-packages.txt)",
+    ),
+]
 
 REPO = Path(__file__).resolve().parents[2]
 SCREENSHOT = REPO / "out" / "animation_screenshot.png"
