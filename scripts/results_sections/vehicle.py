@@ -47,6 +47,8 @@ CONFIGURATIONS = ("paper", "feasible", "hull")
 FIGURE_SEED = 0
 # The acceptance: the vehicle's estimation RMSE within this factor of the kinematic plant's.
 RMSE_RATIO_LIMIT = 1.5
+# [m] A run's tracking RMSE above this: the vehicle fell behind the target (lost the standoff).
+LOST_TRACKING = 10.0
 BOOTSTRAP_RESAMPLES = 2000
 # Runs per row at most: a vehicle run costs about 10 s, and 30 runs resolve the acceptance.
 VEHICLE_RUNS = 30
@@ -93,6 +95,8 @@ def _numbers(result: StudyResult) -> dict[str, Any]:
         "acceleration_mean": s["acceleration_mean"],
         "position_mse": _column(result, "position_rmse") ** 2,
         "velocity_mse": _column(result, "velocity_rmse") ** 2,
+        "bound_mse": _column(result, "pcrlb_position_rmse") ** 2,
+        "tracking_runs": _column(result, "tracking_rmse"),
         "nees_runs": _column(result, "nees_mean"),
         "saturated_runs": _column(result, "thrust_saturated_fraction"),
         "norms": np.asarray(result.norms, dtype=float),
@@ -332,6 +336,13 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
     verdict = "holds" if holds else "does **not** hold"
     interval_inside = accept_high <= RMSE_RATIO_LIMIT
     fn_ci = fn["summary"]["nees_mean_ci95"]
+    # Why the paper's target fails the ratio: runs in which the vehicle fell behind.
+    lost = fn["tracking_runs"] > LOST_TRACKING
+    kept = ~lost & np.isfinite(fn["position_mse"]) & np.isfinite(fk["position_mse"])
+    kept_ratio = math.sqrt(np.mean(fn["position_mse"][kept]) / np.mean(fk["position_mse"][kept]))
+    bound_ratio = math.sqrt(np.nanmean(fn["bound_mse"]) / np.nanmean(fk["bound_mse"]))
+    slow_accept, slow_low, slow_high = _ratio(sn, sk)
+    slow_holds = slow_accept <= RMSE_RATIO_LIMIT and sn["nees_in_band"]
     slow_ratio = _ratio(sv, sk)[0]
     slow_nav_ratio = _ratio(sn, sk)[0]
     worst_slow = int(np.nanargmax(sv["nees_runs"]))
@@ -385,10 +396,14 @@ estimate survives ({pr(pn)} m against
   the difference as motion, a bias. Inflating W by the measured mismatch brings the mean
   NEES from {s(fv, "nees_mean")} to {s(fi, "nees_mean")} but the RMSE only to {pr(fi)} m
   ({div(fi)} diverge).
-- *With navigation the team's acceptance {verdict}* with the paper's own target: position
+- *With navigation the acceptance {verdict}* with the paper's own target: position
   RMSE {_g(accept, ".2f")}× the kinematic plant's, 95 % interval [{_g(accept_low, ".2f")},
   {_g(accept_high, ".2f")}] (limit {RMSE_RATIO_LIMIT:g}), mean NEES {s(fn, "nees_mean")}
   against the band [{fn["band"][0]:.2f}, {fn["band"][1]:.2f}]; {div(fn)} of runs diverge.
+  The filter is consistent; the target outruns the vehicle in {int(np.sum(lost))} of
+  {fn["runs"]} runs and the ranging geometry degrades with the distance (below). With a
+  target the vehicle can follow, the ratio is {_g(slow_accept, ".2f")}× and the NEES
+  {s(sn, "nees_mean")}.
 - *A hull-mounted baseline* (|b| = 0.49 m instead of 1.41 m) costs a factor
   {_g(_ratio(hn, fn)[0], ".2f")} in position RMSE on the vehicle with navigation ({pr(hn)} m
   against {pr(fn)} m).
@@ -535,6 +550,19 @@ configuration on the vehicle; the other rows show what each choice costs.
 {fn["band"][1]:.3f}]; {fn["steps_in_band"]:.0%} of the steady-state steps have their mean
 NEES in that band. With the commanded prediction the ratio is {_g(_ratio(fv, fk)[0], ".2f")}×,
 inflated {_g(_ratio(fi, fk)[0], ".2f")}×.
+
+What decides the ratio is the geometry, not the filter. In {int(np.sum(lost))} of
+{fn["runs"]} runs the paper's target outran the vehicle, which fell behind (tracking RMSE
+above {LOST_TRACKING:g} m), and a range error grows with the range: the per-run posterior
+Cramér–Rao bound of the vehicle's runs is {_g(bound_ratio, ".2f")}× the kinematic plant's,
+and the filter's RMSE over it is {s(fn, "position_rmse_over_per_run_pcrlb", ".2f")} against
+{s(fk, "position_rmse_over_per_run_pcrlb", ".2f")} on the kinematic plant. Over the
+{int(np.sum(kept))} runs the vehicle kept up with, the ratio is {_g(kept_ratio, ".2f")}×
+(that subset is chosen after the fact, so it explains and does not test). With a target the
+vehicle can follow (`slow-vehicle-navigation`), the acceptance
+{"holds" if slow_holds else "does **not** hold"}: position RMSE {_g(slow_accept, ".3f")}×
+the kinematic plant's [{_g(slow_low, ".3f")}, {_g(slow_high, ".3f")}], mean NEES
+{s(sn, "nees_mean", ".3f")} against [{sn["band"][0]:.3f}, {sn["band"][1]:.3f}].
 
 ### What a real mounting costs
 
