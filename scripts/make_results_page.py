@@ -245,7 +245,7 @@ def _estimators(rows: dict[str, dict], ratios: str) -> str:
         return f"{_g(summary[f'{part}_rmse_over_{bound}'])} ({_g(low)}–{_g(high)})"
 
     lines = []
-    for name in ("kf", "ekf", "iekf"):
+    for name in ("kf", "ekf", "iekf", "ukf", "particle_filter"):
         summary = rows.get(f"{name}-trajectory")
         if summary is None:
             continue
@@ -273,9 +273,10 @@ all f samples (Tichavský's recursion with the singular Q = B W Bᵀ handled in 
 trajectories, which in this closed loop depend on the estimator, so each variant's bound is
 computed on its own runs: the Monte Carlo bound averages the measurement information over
 runs and recurses once (the proven bound); the mean of the per-run bounds, each along its own
-trajectory, is what an estimator efficient on every run attains. `estimator: !Ekf` (and
-`!Iekf`) filters the raw ranges, started by the paper's linear KF until its covariance is small
-enough to linearise (`drake_uuv/estimators/raw_range_filter.py`).
+trajectory, is what an estimator efficient on every run attains. `estimator: !Ekf`, `!Iekf`,
+`!Ukf` and `!ParticleFilter` filter the raw ranges, each started by the paper's linear KF and
+handing over by a rule that scales with noise and range (see *Estimation at the limit*
+below).
 
 On the paper scenario (Algorithm 2), steady-state RMSE over the bound, 95 % intervals:
 
@@ -289,7 +290,8 @@ information Y throws away. The EKF reaches the per-run bound, with a mean NEES o
 {_g(ekf["position_rmse_over_pcrlb"], ".2f")}× the proven bound in position because two ranges
 say nothing along q_s × q, and that blind direction differs from run to run: averaging the
 information over runs fills it, so the proven bound is below what any estimator reaches run
-by run. The iterated EKF adds nothing at this noise level. With a fixed attitude no filter
+by run. The iterated EKF, the UKF and the particle filter add nothing at this noise level;
+they part where the noise or the standoff grows (below). With a fixed attitude no filter
 converges: the raw-range filters never leave their linear start and are the paper's KF.
 
 {ratios}

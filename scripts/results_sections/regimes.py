@@ -31,7 +31,7 @@ from drake_uuv.studies.comparison import REGIME_ESTIMATORS, REGIMES, regime_vari
 from drake_uuv.studies.study import StudyResult
 
 ROOT = Path(__file__).resolve().parents[2]
-# The team's acceptance.
+# The acceptance criteria of the regime study.
 BOUND_LIMIT = 1.25  # best estimator's RMSE over the per-run PCRLB
 REFERENCE_LIMIT = 1.1  # … or over the large particle filter's, where that is above BOUND_LIMIT
 PF_SECONDS_LIMIT = 10.0  # default particle count, 500-step paper run
@@ -391,7 +391,7 @@ process (on a shared 2-core machine).
 
 {chr(10).join(table)}
 
-### The team's acceptance
+### Acceptance
 
 **Best estimator within {BOUND_LIMIT:g}× the per-run PCRLB** (or within {REFERENCE_LIMIT:g}×
 the {REFERENCE} reference where that is itself above {BOUND_LIMIT:g}×), best among the KF, EKF,
