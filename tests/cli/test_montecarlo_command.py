@@ -86,8 +86,15 @@ def _start_cli(folder: Path, runs: int, workers: int) -> subprocess.Popen:
     command = [sys.executable, "-m", "drake_uuv.cli", "montecarlo", "--runs", str(runs)]
     command += ["--workers", str(workers), "--chunk-size", "2", "--no-progress", "--out"]
     command += [str(folder), "--set", "steps=150", "--set", "steady_state_start=50"]
+    # SIGINT back to its default in the child: a shell's background job (nohup … &) starts with
+    # it ignored, and Python then installs no KeyboardInterrupt handler, so Ctrl-C would be lost.
     return subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
 
 

@@ -53,7 +53,9 @@ def ratio_and_error(result) -> tuple[float, float]:
 
 @pytest.fixture(scope="module")
 def paper_pf(tmp_path_factory):
-    return _study(tmp_path_factory, "paper", "pf", 16)
+    # 40 runs: the ratio's standard error is about 0.023 (0.036 with 16), so 3 of them fit
+    # inside the 10 % margin.
+    return _study(tmp_path_factory, "paper", "pf", 40)
 
 
 @pytest.fixture(scope="module")
@@ -91,7 +93,7 @@ def test_ratio_and_error_is_the_delta_method_of_the_ratio_of_means() -> None:
 
 def test_easy_regime_the_particle_filter_is_within_1_1_of_the_per_run_bound(paper_pf) -> None:
     ratio, se = ratio_and_error(paper_pf)
-    assert Z * se < 0.1, f"16 runs must resolve the 10 % margin (se {se:.3f})"
+    assert Z * se < 0.1, f"40 runs must resolve the 10 % margin (se {se:.3f})"
     assert ratio <= 1.1, f"{ratio:.3f} ± {se:.3f}× the per-run bound"
     assert ratio >= 1.0 - Z * se, f"{ratio:.3f} ± {se:.3f}: below the bound"
     assert paper_pf.summary["diverged_fraction"] == 0.0
