@@ -82,6 +82,7 @@ def test_cli_reports_a_stopped_run_in_one_line(broken, capsys, tmp_path) -> None
     assert not (tmp_path / "log.npz").exists()
 
 
+@pytest.mark.slow
 def test_healthy_runs_are_not_stopped() -> None:
     # A fixed attitude diverges, but consistently: the monitor must let it run.
     for tag in ("FixedAttitude", "RandomAttitude", "TrajectoryAttitude"):

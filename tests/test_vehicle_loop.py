@@ -21,6 +21,9 @@ from drake_uuv.models.vehicle_envelope import (
 )
 from drake_uuv.studies.comparison import vehicle_variants
 
+# Every test here runs the hovering UUV's closed loop (seconds each).
+pytestmark = pytest.mark.slow
+
 VEHICLE = "plant=!HoveringAuv"
 # Fast ticks per outer step: 50 Hz in t = 0.5 s.
 TICKS = 25
@@ -112,7 +115,6 @@ def _window(result) -> slice:
     return slice(result.scenario.steady_state_start, None)
 
 
-@pytest.mark.slow
 def test_attitude_metrics_are_those_of_the_logged_attitudes(feasible_run, paper_run) -> None:
     for result in (feasible_run, paper_run):
         log, m, w = result.log, result.metrics, _window(result)
@@ -179,7 +181,6 @@ def test_the_kinematic_plant_follows_its_commands_exactly(paper) -> None:
     assert "thrust_saturated_fraction" not in metrics
 
 
-@pytest.mark.slow
 def test_on_a_followable_target_the_vehicle_estimates_like_the_kinematic_plant() -> None:
     """8 seeds (0–7) of the ``slow-*`` rows, as the study runs them (500 steps, k ≥ 200; the
     first steps differ between the two plants while the estimate converges): the vehicle's
@@ -223,7 +224,6 @@ def motion_runs():
     return {name: ClosedLoopSimulation(s).run(MOTION_SEED) for name, s in runs.items()}
 
 
-@pytest.mark.slow
 def test_navigation_keeps_the_filter_consistent_where_the_commanded_prediction_does_not(
     motion_runs,
 ) -> None:
@@ -263,7 +263,6 @@ def test_navigation_keeps_the_filter_consistent_where_the_commanded_prediction_d
     assert peak["commanded"] > 1.5 * peak["kinematic"]
 
 
-@pytest.mark.slow
 def test_navigation_on_a_followable_target_estimates_like_the_kinematic_plant() -> None:
     """The acceptance where the vehicle can follow the target (``slow-kinematic`` and
     ``slow-vehicle-navigation`` as the study runs them, 500 steps, k ≥ 200) on 8 seeds outside

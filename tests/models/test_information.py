@@ -347,6 +347,7 @@ def _riccati_run(p: InformationSeekingPlanner, steps: int = 300) -> np.ndarray:
     return np.array(R)
 
 
+@pytest.mark.slow
 def test_greedy_planning_alone_loses_excitation_and_the_floor_restores_it() -> None:
     """Why the floor exists: E-optimal greedy planning with 0.1 rad per step leaves a
     direction nearly unexcited for a whole window in the KF's own Riccati loop."""

@@ -100,6 +100,7 @@ def test_thrust_lag_is_first_order() -> None:
     assert_allclose(out["thrust"], command * (1.0 - math.exp(-2.5)), rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_neutral_vehicle_at_rest_neither_drifts_nor_turns_over_60_s() -> None:
     config = HoveringAuv()
     R0 = RotationMatrix(RollPitchYaw(0.0, 0.0, 1.2)).matrix()
@@ -110,6 +111,7 @@ def test_neutral_vehicle_at_rest_neither_drifts_nor_turns_over_60_s() -> None:
     assert_allclose(out["nu_B"], 0.0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_buoyancy_restores_a_tilted_vehicle_to_upright() -> None:
     config = HoveringAuv()
     model = config.vehicle_model()

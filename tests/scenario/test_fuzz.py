@@ -75,6 +75,7 @@ SETTINGS = settings(
 )
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(overrides=st.dictionaries(keys, values, max_size=4))
 def test_random_field_values(tmp_path, overrides) -> None:

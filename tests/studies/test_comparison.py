@@ -197,6 +197,7 @@ def test_attitude_group_pairs_each_budget_with_algorithm_2_limited_to_it_and_bui
         make_uuv_diagram(scenario, log=False)  # every system of the variant builds and wires
 
 
+@pytest.mark.slow
 def test_attitude_group_rows_of_a_budget_turn_by_at_most_it_and_the_limit_binds():
     rows = {v.name: v for v in VARIANT_GROUPS["attitude"]()}
     peaks = {}

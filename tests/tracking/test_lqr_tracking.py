@@ -284,6 +284,7 @@ def test_diagram_picks_the_law_by_variant() -> None:
     assert_allclose(paper.gain, paper_gain_matrix(T, 1.2))
 
 
+@pytest.mark.slow
 def test_lqr_closed_loop_is_smooth_and_tracks() -> None:
     """One seeded paper-scenario run: a far smaller acceleration than the paper's law."""
     lqr = ClosedLoopSimulation(lqr_scenario()).run(seed=1).metrics

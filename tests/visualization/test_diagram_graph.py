@@ -12,6 +12,7 @@ from drake_uuv.visualization.diagram_graph import diagram_dot, diagram_variants
 DIAGRAMS = Path(__file__).resolve().parents[2] / "diagrams"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(diagram_variants()))
 def test_committed_export_is_current(name: str) -> None:
     committed = DIAGRAMS / f"{name}.dot"
