@@ -71,6 +71,13 @@ def _column(result: StudyResult, name: str) -> np.ndarray:
     return result.column(name)
 
 
+def _mean(values: np.ndarray) -> float:
+    """Mean of the finite values; NaN (quietly) when there are none, as for a kinematic row's
+    vehicle-only columns."""
+    finite = values[np.isfinite(values)]
+    return float(np.mean(finite)) if finite.size else math.nan
+
+
 def _numbers(result: StudyResult) -> dict[str, Any]:
     """The section's figures of one study (runs in seed order)."""
     s = result.summary
@@ -88,9 +95,9 @@ def _numbers(result: StudyResult) -> dict[str, Any]:
         "band": (low, high),
         "nees_in_band": bool(low <= (s["nees_mean"] or math.inf) <= high),
         "steps_in_band": float(np.mean((per_step >= low) & (per_step <= high))),
-        "attitude_error_mean": float(np.nanmean(_column(result, "attitude_error_mean"))),
+        "attitude_error_mean": _mean(_column(result, "attitude_error_mean")),
         "attitude_error_peak": float(np.nanmax(peaks)) if np.any(np.isfinite(peaks)) else math.nan,
-        "saturated": float(np.nanmean(_column(result, "thrust_saturated_fraction"))),
+        "saturated": _mean(_column(result, "thrust_saturated_fraction")),
         "model_acceleration_rmse": _rms(_column(result, "model_acceleration_rmse")),
         "acceleration_mean": s["acceleration_mean"],
         "position_mse": _column(result, "position_rmse") ** 2,
