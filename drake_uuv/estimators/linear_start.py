@@ -1,6 +1,7 @@
 """What the raw-range filters share: the paper's linear KF as a start, and the hand-over."""
 
 import math
+from typing import Any
 
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues
@@ -9,6 +10,7 @@ from drake_uuv.estimators.base import FilteredEstimate, MeasurementUpdate, Relat
 from drake_uuv.models.filters import HandoverPolicy, range_difference_update
 from drake_uuv.models.handover import HandoverRule, prior_share_predict, prior_share_update
 from drake_uuv.models.measurement import VALID, range_difference_noise
+from drake_uuv.scenario import Scenario
 
 # The start-phase state (discrete-state group 2): [phase, linear updates done].
 LINEAR_PHASE, RANGE_PHASE = 1.0, 0.0
@@ -85,6 +87,26 @@ class LinearStartEstimator(RelativeStateEstimator):
         self._start_index = self.DeclareDiscreteState(np.array([phase, 0.0]))
         P0 = np.asarray(initial_covariance, dtype=float)
         self._prior_share_index = self.DeclareDiscreteState(P0.ravel())
+
+    @staticmethod
+    def scenario_arguments(scenario: Scenario) -> dict[str, Any]:
+        """The constructor arguments every raw-range filter takes from ``scenario`` (its
+        estimator section and the sonar), for a subclass's ``from_scenario``."""
+        e = scenario.estimator
+        return dict(
+            time_step=scenario.time_step,
+            acceleration_covariance=e.filter_acceleration_covariance(
+                scenario.target.acceleration_covariance
+            ),
+            initial_estimate=np.asarray(e.initial_estimate),
+            initial_covariance=np.asarray(e.initial_covariance),
+            noise_variances=np.asarray(scenario.sonar.noise_variances),
+            samples_per_step=scenario.sonar.samples_per_step,
+            noise_model=e.noise_model,
+            handover=e.handover_rule(),
+            gate_probability=e.gate_probability,
+            vehicle_motion=e.vehicle_motion,
+        )
 
     def default_handover(self) -> HandoverRule | HandoverPolicy:
         """The hand-over used when none is given: :class:`HandoverRule` ``()``."""

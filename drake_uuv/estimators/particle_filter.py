@@ -176,20 +176,7 @@ class ParticleRangeEstimator(LinearStartEstimator):
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> "ParticleRangeEstimator":
         """The filter of ``scenario.estimator`` (a :class:`~drake_uuv.scenario.ParticleFilter`)."""
-        e = scenario.estimator
-        return cls(
-            scenario.time_step,
-            e.filter_acceleration_covariance(scenario.target.acceleration_covariance),
-            np.asarray(e.initial_estimate),
-            np.asarray(e.initial_covariance),
-            np.asarray(scenario.sonar.noise_variances),
-            scenario.sonar.samples_per_step,
-            noise_model=e.noise_model,
-            handover=e.handover_rule(),
-            gate_probability=e.gate_probability,
-            parameters=e.parameters(),
-            vehicle_motion=e.vehicle_motion,
-        )
+        return cls(**cls.scenario_arguments(scenario), parameters=scenario.estimator.parameters())
 
     def particles(self, context: Context) -> np.ndarray:
         """The predicted particles of this step as a 6×N array: relative states ``Υ``.

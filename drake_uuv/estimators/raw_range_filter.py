@@ -127,20 +127,8 @@ class RawRangeEstimator(LinearStartEstimator):
     def from_scenario(cls, scenario: Scenario) -> "RawRangeEstimator":
         """The filter of ``scenario.estimator`` (an :class:`~drake_uuv.scenario.Ekf` or
         :class:`~drake_uuv.scenario.Iekf`)."""
-        e = scenario.estimator
-        return cls(
-            scenario.time_step,
-            e.filter_acceleration_covariance(scenario.target.acceleration_covariance),
-            np.asarray(e.initial_estimate),
-            np.asarray(e.initial_covariance),
-            np.asarray(scenario.sonar.noise_variances),
-            scenario.sonar.samples_per_step,
-            method="iekf" if isinstance(e, Iekf) else "ekf",
-            noise_model=e.noise_model,
-            handover=e.handover_rule(),
-            gate_probability=e.gate_probability,
-            vehicle_motion=e.vehicle_motion,
-        )
+        method = "iekf" if isinstance(scenario.estimator, Iekf) else "ekf"
+        return cls(**cls.scenario_arguments(scenario), method=method)
 
     def default_handover(self) -> HandoverRule:
         """:class:`~drake_uuv.models.handover.HandoverRule` with the second-order test: the

@@ -91,19 +91,7 @@ class UnscentedRangeEstimator(LinearStartEstimator):
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> "UnscentedRangeEstimator":
         """The filter of ``scenario.estimator`` (a :class:`~drake_uuv.scenario.Ukf`)."""
-        e = scenario.estimator
-        return cls(
-            scenario.time_step,
-            e.filter_acceleration_covariance(scenario.target.acceleration_covariance),
-            np.asarray(e.initial_estimate),
-            np.asarray(e.initial_covariance),
-            np.asarray(scenario.sonar.noise_variances),
-            scenario.sonar.samples_per_step,
-            noise_model=e.noise_model,
-            handover=e.handover_rule(),
-            gate_probability=e.gate_probability,
-            vehicle_motion=e.vehicle_motion,
-        )
+        return cls(**cls.scenario_arguments(scenario))
 
     @property
     def sigma_points(self) -> SigmaPointParameters:

@@ -199,10 +199,8 @@ def vehicle_variants() -> list[Variant]:
         f"attitude.max_angular_rate={VEHICLE_ANGULAR_RATE}",
     )
     hull = (*feasible, "sonar.baseline=[-0.35, 0.35, 0]")
-    slow = (
-        *feasible,
-        "target.acceleration_covariance=[[0.000664, 0, 0], [0, 0.000166, 0], [0, 0, 0.000166]]",
-    )
+    scale, slowed = followable_target(load_scenario("paper"))
+    slow = (*feasible, slowed)
     vehicle = "plant=!HoveringAuv"
     navigation = "estimator.vehicle_motion=navigation"
     # model_acceleration_rmse² / 3 [m²/s⁴] (see above): RMS 0.2530 m/s² over feasible-vehicle's
@@ -235,13 +233,13 @@ def vehicle_variants() -> list[Variant]:
             ),
         ]
     rows += [
-        Variant("slow-kinematic", group, slow, "feasible, W × 0.166"),
-        Variant("slow-vehicle", group, (*slow, vehicle), "feasible, W × 0.166"),
+        Variant("slow-kinematic", group, slow, f"feasible, W × {scale:g}"),
+        Variant("slow-vehicle", group, (*slow, vehicle), f"feasible, W × {scale:g}"),
         Variant(
             "slow-vehicle-navigation",
             group,
             (*slow, vehicle, navigation),
-            "feasible, W × 0.166, nav.",
+            f"feasible, W × {scale:g}, nav.",
         ),
     ]
     return rows
@@ -342,6 +340,20 @@ def attitude_budget_variants(budgets: Sequence[float] = ATTITUDE_BUDGETS) -> lis
 ATTITUDE_VEHICLE_GROUP = "attitude on the hovering UUV: equal rotation within its rate limit"
 
 
+def followable_target(paper: Scenario) -> tuple[float, str]:
+    """The factor on the paper's W that a vehicle can follow, and its ``--set`` override.
+
+    :func:`~drake_uuv.models.vehicle_envelope.followable_target_scale` for an RMS speed of
+    :data:`VEHICLE_SPEED_BUDGET` at the last step, rounded to three digits (0.166 for the
+    paper scenario), and ``target.acceleration_covariance`` scaled by it (six digits).
+    """
+    v0, W0 = paper.target.initial_velocity, np.asarray(paper.target.acceleration_covariance)
+    scale = followable_target_scale(v0, W0, paper.time_step, paper.steps, VEHICLE_SPEED_BUDGET)
+    scale = float(f"{scale:.3g}")
+    W = [[float(f"{w:.6g}") for w in row] for row in (scale * W0).tolist()]
+    return scale, f"target.acceleration_covariance={W}"
+
+
 def attitude_vehicle_variants() -> list[Variant]:
     """Algorithm 2 rate-limited to :data:`VEHICLE_ANGULAR_RATE` against the planner with the
     same rotation per step (``rate · t``), under the paper's KF and :data:`VEHICLE_LOOP`, on
@@ -355,11 +367,7 @@ def attitude_vehicle_variants() -> list[Variant]:
     t = paper.time_step
     budget = VEHICLE_ANGULAR_RATE * t
     note = f"{budget:g} rad/step"
-    v0, W0 = paper.target.initial_velocity, np.asarray(paper.target.acceleration_covariance)
-    scale = followable_target_scale(v0, W0, t, paper.steps, VEHICLE_SPEED_BUDGET)
-    scale = float(f"{scale:.3g}")
-    W = (scale * W0).tolist()
-    target = f"target.acceleration_covariance={[[float(f'{w:.6g}') for w in r] for r in W]}"
+    scale, target = followable_target(paper)
     attitudes = {
         "alg2": ("attitude=!TrajectoryAttitude", f"attitude.max_angular_rate={budget / t!r}"),
         "info": (f"attitude=!InformationSeeking {{max_angle_per_step: {budget!r}}}",),
