@@ -60,22 +60,21 @@ def _g(value: float | None, fmt: str = ".3g") -> str:
     return "—" if value is None or not math.isfinite(value) else format(value, fmt)
 
 
+def _mean(values: np.ndarray) -> float:
+    """Mean of the finite values; NaN (quietly) when there are none, as for a kinematic row's
+    vehicle-only columns."""
+    finite = values[np.isfinite(values)]
+    return float(np.mean(finite)) if finite.size else math.nan
+
+
 def _rms(values: np.ndarray) -> float:
-    values = values[np.isfinite(values)]
-    return float(np.sqrt(np.mean(values**2))) if len(values) else math.nan
+    return math.sqrt(_mean(values**2))
 
 
 def _column(result: StudyResult, name: str) -> np.ndarray:
     if name not in result.metric_names:
         return np.full(len(result.seeds), math.nan)
     return result.column(name)
-
-
-def _mean(values: np.ndarray) -> float:
-    """Mean of the finite values; NaN (quietly) when there are none, as for a kinematic row's
-    vehicle-only columns."""
-    finite = values[np.isfinite(values)]
-    return float(np.mean(finite)) if finite.size else math.nan
 
 
 def _numbers(result: StudyResult) -> dict[str, Any]:
