@@ -6,14 +6,20 @@ counts can be compared on many seeded runs in seconds. The desired relative posi
 is held in the world frame (``--body-frame``: the paper's body frame). Each estimator but
 ``kf`` starts as the paper's KF and hands over by :class:`~drake_uuv.models.handover.
 HandoverRule` (``--angle``, ``--prior-share``; the particle filter uses no angle test), or
-also by the second-order range error against the noise (``--second-order c``).
+also by the second-order range error against the noise (``--second-order c``). With
+``--bridge`` the EKF and UKF carry particles between the prior test and the Gaussian test,
+and go back to them when an angle exceeds ``--fallback`` × the tolerance (the rule's
+``particle_bridge``, as the Drake filters do by default).
 
 Prints, per estimator and rule: position RMSE over k ≥ 200, the mean per-run posterior
 Cramér–Rao bound and their ratio, mean NEES, runs that diverged (final error > 10 m), the
-median hand-over step (−1: some runs never handed over), how many never did, seconds per run.
+median step of the (last) hand-over to the Gaussian filter (−1: some runs never handed over),
+how many never did, seconds per run, and the fallbacks to particles over all runs.
 
     python benchmarks/estimator_regimes.py --sigma 0.5 --body-frame --runs 40
     python benchmarks/estimator_regimes.py --q-star -20 -20 0 --estimators ekf ukf --angle 0.2 0.3
+    python benchmarks/estimator_regimes.py --sigma 1 --body-frame --estimators ekf ukf \
+        --second-order 1 nan --bridge
 """
 
 from __future__ import annotations
@@ -125,7 +131,10 @@ class StartedFilter:
     rng: np.random.Generator
     pf: ParticleFilterParameters = field(default_factory=ParticleFilterParameters)
     pf_init: str = "linear"  # linear | prior
+    bridge: bool = False  # ekf/ukf: particles between the linear start and the Gaussian
     linear: bool = True
+    bridging: bool = False
+    fallbacks: int = 0
     steps: int = 0
     handover_step: int = -1
     particles: np.ndarray | None = None
@@ -159,6 +168,21 @@ class StartedFilter:
                 self.handover_step = k
                 if self.kind == "pf":
                     self._draw(self.x, self.P)
+            elif self.bridge and self.rule.rule.prior_forgotten(self.P, self.steps, self.S):
+                self.linear = False
+                self.bridging = True
+                self._draw(self.x, self.P)
+            return
+        if self.bridging:
+            self.x, self.P, self.nis, self.log_weights = pf_update(
+                self.particles, self.log_weights, z, q_s, self.R
+            )
+            if self.rule.handover_due(
+                self.P, self.steps, self.x, q_s, self.noise_std, np.zeros((6, 6))
+            ):
+                self.bridging = False
+                self.particles = None
+                self.handover_step = k
             return
         if self.kind == "pf":
             self.x, self.P, self.nis, self.log_weights = pf_update(
@@ -166,9 +190,13 @@ class StartedFilter:
             )
         else:
             self.x, self.P, self.nis = UPDATES[self.kind](self.x, self.P, z, q_s, self.R)
+            if self.bridge and self.rule.rule.fallback_due(self.x, self.P, q_s):
+                self.bridging = True
+                self.fallbacks += 1
+                self._draw(self.x, self.P)
 
     def predict(self, a_W: np.ndarray) -> None:
-        if self.kind == "pf" and self.particles is not None:
+        if (self.kind == "pf" or self.bridging) and self.particles is not None:
             self.particles, self.log_weights, _ = pf_predict(
                 self.particles, self.log_weights, a_W, self.A, self.B, self.W, self.rng, self.pf
             )
@@ -187,6 +215,7 @@ def run(
     pf: ParticleFilterParameters,
     world_frame: bool,
     attitudes: np.ndarray,
+    bridge: bool = False,
 ) -> dict:
     rng = np.random.default_rng(seed)
     filter_rng = np.random.default_rng([seed, 1])
@@ -200,7 +229,9 @@ def run(
     x_hat, P = s.x0_hat.astype(float), s.P0.astype(float)
     filt = None
     if kind != "kf":
-        filt = StartedFilter(kind, x_hat, P, A, B, s.W, s.eta, f, rule, filter_rng, pf)
+        filt = StartedFilter(
+            kind, x_hat, P, A, B, s.W, s.eta, f, rule, filter_rng, pf, bridge=bridge
+        )
     x_true = np.empty((N, 6))
     est = np.empty((N, 6))
     covs = np.empty((N, 6, 6))
@@ -235,13 +266,17 @@ def run(
         "P": covs,
         "q_s": q_s_all,
         "handover": -1 if filt is None else filt.handover_step,
+        "fallbacks": 0 if filt is None else filt.fallbacks,
     }
 
 
-def study(s, kind, runs, rule, pf, world_frame, first_seed=0) -> dict:
+def study(s, kind, runs, rule, pf, world_frame, first_seed=0, bridge=False) -> dict:
     attitudes = algorithm2_attitudes(s)
     t0 = time.perf_counter()
-    results = [run(s, kind, first_seed + i, rule, pf, world_frame, attitudes) for i in range(runs)]
+    results = [
+        run(s, kind, first_seed + i, rule, pf, world_frame, attitudes, bridge and kind != "pf")
+        for i in range(runs)
+    ]
     wall = (time.perf_counter() - t0) / runs
     start = s.steady_state_start
     mse, nees, final, handovers = [], [], [], []
@@ -283,6 +318,7 @@ def study(s, kind, runs, rule, pf, world_frame, first_seed=0) -> dict:
         "handover": float(np.median(handovers)),
         "never": int(np.sum(np.array(handovers) < 0)) if kind != "kf" else 0,
         "wall": wall,
+        "fallbacks": int(sum(r["fallbacks"] for r in results)),
     }
 
 
@@ -304,6 +340,17 @@ def main() -> None:
     parser.add_argument("--angle", type=float, nargs="+", default=[0.25], help="nan: none")
     parser.add_argument("--min-linear-steps", type=int, default=1)
     parser.add_argument("--no-linear-start", action="store_true")
+    parser.add_argument(
+        "--bridge",
+        action="store_true",
+        help="ekf/ukf: particles from the prior-share test until the full rule holds",
+    )
+    parser.add_argument(
+        "--fallback",
+        type=float,
+        default=1.2,
+        help="with --bridge: back to particles when an angle exceeds this x the tolerance",
+    )
     parser.add_argument("--count", type=int, default=5000)
     parser.add_argument("--bandwidth-scale", type=float, default=1.0)
     parser.add_argument("--steps", type=int, default=500)
@@ -328,7 +375,7 @@ def main() -> None:
     )
     print(
         f"{'est':<5} {'2nd':>5} {'share':>5} {'angle':>5} {'RMSE':>7} {'bound':>7} {'ratio':>6} "
-        f"{'NEES':>7} {'div':>3} {'handover':>8} {'never':>5} {'s/run':>6}"
+        f"{'NEES':>7} {'div':>3} {'handover':>8} {'never':>5} {'s/run':>6} {'back':>4}"
     )
     for kind in args.estimators:
         angles = [math.nan] if kind == "pf" else args.angle
@@ -343,15 +390,17 @@ def main() -> None:
                         prior_share=share,
                         min_linear_steps=args.min_linear_steps,
                         max_linear_steps=0 if args.no_linear_start else None,
+                        particle_bridge=args.bridge and kind != "pf",
+                        fallback_factor=args.fallback,
                     ),
                     None if math.isnan(tol) else tol,
                 )
             )
-            r = study(s, kind, args.runs, rule, pf, not args.body_frame)
+            r = study(s, kind, args.runs, rule, pf, not args.body_frame, bridge=args.bridge)
             print(
                 f"{kind:<5} {tol:5.2f} {share:5.2f} {angle:5.2f} {r['rmse']:7.3f} "
                 f"{r['bound']:7.3f} {r['ratio']:6.2f} {r['nees']:7.2f} {r['diverged']:3d} "
-                f"{r['handover']:8.0f} {r['never']:5d} {r['wall']:6.3f}",
+                f"{r['handover']:8.0f} {r['never']:5d} {r['wall']:6.3f} {r['fallbacks']:4d}",
                 flush=True,
             )
 

@@ -1,31 +1,12 @@
 """Regularised particle filter on both raw ranges, started by the paper's linear KF."""
 
-import math
-
 import numpy as np
-from pydrake.common import RandomDistribution
-from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, DiscreteValues, ValueProducer
 
-from drake_uuv.estimators.base import FilteredEstimate
-from drake_uuv.estimators.linear_start import RANGE_PHASE, LinearStartEstimator
+from drake_uuv.estimators.linear_start import LinearStartEstimator
 from drake_uuv.models.filters import HandoverPolicy
 from drake_uuv.models.handover import HandoverRule
-from drake_uuv.models.measurement import VALID
-from drake_uuv.models.particle_filter import (
-    STATE_SIZE,
-    ParticleFilterParameters,
-    initial_particles,
-    pf_predict,
-    pf_update,
-    weighted_moments,
-)
-from drake_uuv.primitives.random_input import declare_random_input
+from drake_uuv.models.particle_filter import ParticleFilterParameters
 from drake_uuv.scenario import Scenario
-
-# The uniform draw of the random port becomes a generator seed with this many bits (a double
-# in [0, 1) carries 53).
-_SEED_BITS = 53
 
 
 class ParticleRangeEstimator(LinearStartEstimator):
@@ -39,6 +20,9 @@ class ParticleRangeEstimator(LinearStartEstimator):
     regularises, and moves every particle by the model with its own target acceleration
     (:func:`~drake_uuv.models.particle_filter.pf_predict`). With a large count its estimate
     is the posterior mean: the reference that shows where the Cramér–Rao bound is attainable.
+    The particle phase is :class:`~drake_uuv.estimators.linear_start.LinearStartEstimator`'s
+    (the one the EKF and UKF bridge with); this filter has no Gaussian update, so once drawn
+    it stays on particles.
 
     Randomness enters only through the random input port ``particle_seed`` (one uniform draw
     per step, connect a ``RandomSource`` of kUniform), read only in the periodic update, where
@@ -69,6 +53,7 @@ class ParticleRangeEstimator(LinearStartEstimator):
     Discrete state: groups 0–3 as in the base classes (groups 0 and 1 hold the predicted
     cloud's mean and covariance once the particles exist); group 4 the predicted particles
     (6N, state-major: the N values of q_x, then of q_y, …); group 5 their log weights (N).
+    The phase (group 2) is ``LINEAR_PHASE``, then ``PARTICLE_PHASE``.
 
     .. pydrake_system::
 
@@ -95,6 +80,8 @@ class ParticleRangeEstimator(LinearStartEstimator):
       base class.
     """
 
+    gaussian = False
+
     def __init__(
         self,
         time_step: float,
@@ -109,6 +96,8 @@ class ParticleRangeEstimator(LinearStartEstimator):
         parameters: ParticleFilterParameters | None = None,
         vehicle_motion: str = "commanded",
     ) -> None:
+        if parameters is not None and not isinstance(parameters, ParticleFilterParameters):
+            raise ValueError(f"parameters: must be ParticleFilterParameters, got {parameters!r}")
         super().__init__(
             time_step,
             acceleration_covariance,
@@ -120,40 +109,14 @@ class ParticleRangeEstimator(LinearStartEstimator):
             handover,
             gate_probability,
             vehicle_motion,
+            parameters,
         )
         if not self.handover.linear_start:
             raise ValueError(
                 "handover: the particle filter draws its particles from the linear start, "
                 f"max_linear_steps must not be 0, got {self.handover!r}"
             )
-        if parameters is None:
-            parameters = ParticleFilterParameters()
-        if not isinstance(parameters, ParticleFilterParameters):
-            raise ValueError(f"parameters: must be ParticleFilterParameters, got {parameters!r}")
-        self._parameters = parameters
-        self._W = np.asarray(acceleration_covariance, dtype=float)
-        n = parameters.count
-        self._particles_index = self.DeclareDiscreteState(np.zeros(STATE_SIZE * n))
-        self._log_weights_index = self.DeclareDiscreteState(np.full(n, -math.log(n)))
         self._declare_ports()
-        self._seed_port = declare_random_input(
-            self, "particle_seed", 1, RandomDistribution.kUniform
-        )
-        # The posterior log weights, shared by the filtered output and the periodic update.
-        self._posterior = self.DeclareCacheEntry(
-            "particle posterior",
-            ValueProducer(
-                allocate=AbstractValue.Make((np.zeros(6), np.eye(6), math.nan, np.zeros(n))).Clone,
-                calc=self._calc_posterior,
-            ),
-            {
-                self._samples_port.ticket(),
-                self._b_W_port.ticket(),
-                self._status_port.ticket(),
-                self.xd_ticket(),
-                *(port.ticket() for port in self._vehicle_ports),
-            },
-        )
 
     def default_handover(self) -> HandoverRule:
         """:class:`HandoverRule` without the angle test: particles need no Gaussian posterior."""
@@ -161,91 +124,11 @@ class ParticleRangeEstimator(LinearStartEstimator):
 
     @property
     def parameters(self) -> ParticleFilterParameters:
-        return self._parameters
-
-    @property
-    def particles_index(self) -> int:
-        """The discrete-state group of the predicted particles (6N, state-major)."""
-        return self._particles_index
-
-    @property
-    def log_weights_index(self) -> int:
-        """The discrete-state group of the particles' log weights (N)."""
-        return self._log_weights_index
+        return self.particle_parameters
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> "ParticleRangeEstimator":
         """The filter of ``scenario.estimator`` (a :class:`~drake_uuv.scenario.ParticleFilter`)."""
-        return cls(**cls.scenario_arguments(scenario), parameters=scenario.estimator.parameters())
-
-    def particles(self, context: Context) -> np.ndarray:
-        """The predicted particles of this step as a 6×N array: relative states ``Υ``.
-
-        With ``vehicle_motion="navigation"`` the state holds them less the vehicle's state
-        (``−X̄``, the target's particles negated) and this adds ``X`` of the step.
-        """
-        value = context.get_discrete_state(self._particles_index).get_value()
-        particles = value.reshape(STATE_SIZE, self._parameters.count)
-        if self._navigation:
-            return particles + self._vehicle_state(context)[:, np.newaxis]
-        return particles
-
-    def _calc_posterior(self, context: Context, value: AbstractValue) -> None:
-        z, valid = self._means(context, self._status_port.Eval(context))
-        log_weights = context.get_discrete_state(self._log_weights_index).get_value()
-        value.set_value(
-            pf_update(
-                self.particles(context),
-                log_weights,
-                z,
-                self._b_W_port.Eval(context),
-                self._R,
-                np.flatnonzero(valid),
-            )
-        )
-
-    def range_update(
-        self,
-        context: Context,
-        x_prior: np.ndarray,
-        P_prior: np.ndarray,
-        z: np.ndarray,
-        q_s: np.ndarray,
-        sonars: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, float]:
-        x, P, nis, _ = self._posterior.Eval(context)
-        return x, P, nis
-
-    def advance_extra_state(
-        self, context: Context, filtered: FilteredEstimate, discrete_state: DiscreteValues
-    ) -> None:
-        was_linear = self.in_linear_phase(context)
-        super().advance_extra_state(context, filtered, discrete_state)
-        if discrete_state.get_value(self.start_state_index)[0] != RANGE_PHASE:
-            return
-        u = float(self._seed_port.Eval(context)[0])
-        rng = np.random.default_rng(int(u * 2.0**_SEED_BITS))
-        count = self._parameters.count
-        if was_linear:  # the hand-over: draw the particles from the KF's Gaussian
-            particles = initial_particles(filtered.x, filtered.P, count, rng)
-            log_weights = np.full(count, -math.log(count))
-        else:
-            particles = self.particles(context)
-        if self._navigation:  # predict the target: −X̄(k+1|k) = A (Υ(k) − X(k)) + noise
-            particles = particles - self._vehicle_state(context)[:, np.newaxis]
-            acceleration = np.zeros(3)
-        else:
-            acceleration = self._a_port.Eval(context)
-        if not was_linear:
-            if filtered.status == VALID:
-                log_weights = self._posterior.Eval(context)[3]
-            else:  # no update, or one the gate rejected: the prediction's weights stand
-                log_weights = context.get_discrete_state(self._log_weights_index).get_value()
-        particles, log_weights, _ = pf_predict(
-            particles, log_weights, acceleration, self._A, self._B, self._W, rng, self._parameters
-        )
-        x, P = weighted_moments(particles, np.exp(log_weights))
-        discrete_state.set_value(self._x_index, x)
-        discrete_state.set_value(self._P_index, P.ravel())
-        discrete_state.set_value(self._particles_index, particles.ravel())
-        discrete_state.set_value(self._log_weights_index, log_weights)
+        arguments = cls.scenario_arguments(scenario)
+        parameters = arguments.pop("particle_parameters")
+        return cls(**arguments, parameters=parameters)

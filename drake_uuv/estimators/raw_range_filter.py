@@ -10,6 +10,7 @@ from drake_uuv.estimators.linear_start import (  # noqa: F401 (re-exported)
 )
 from drake_uuv.models.filters import HandoverPolicy, RangeUpdate, ekf_update, iekf_update
 from drake_uuv.models.handover import HandoverRule
+from drake_uuv.models.particle_filter import ParticleFilterParameters
 from drake_uuv.scenario import Iekf, Scenario
 
 #: The range update of each method.
@@ -104,6 +105,7 @@ class RawRangeEstimator(LinearStartEstimator):
         handover: HandoverPolicy | HandoverRule | None = None,
         gate_probability: float | None = None,
         vehicle_motion: str = "commanded",
+        particle_parameters: ParticleFilterParameters | None = None,
     ) -> None:
         if method not in UPDATES:
             raise ValueError(f"method: must be one of {', '.join(UPDATES)}, got {method!r}")
@@ -118,6 +120,7 @@ class RawRangeEstimator(LinearStartEstimator):
             handover,
             gate_probability,
             vehicle_motion,
+            particle_parameters,
         )
         self._method = method
         self._update = UPDATES[method]
@@ -133,7 +136,7 @@ class RawRangeEstimator(LinearStartEstimator):
     def default_handover(self) -> HandoverRule:
         """:class:`~drake_uuv.models.handover.HandoverRule` with the second-order test: the
         EKF drops the ranges' second-order term."""
-        return HandoverRule(second_order_tolerance=1.0)
+        return HandoverRule(second_order_tolerance=1.0, particle_bridge=True)
 
     @property
     def method(self) -> str:

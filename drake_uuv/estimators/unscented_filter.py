@@ -6,6 +6,7 @@ from pydrake.systems.framework import Context
 from drake_uuv.estimators.linear_start import LinearStartEstimator
 from drake_uuv.models.filters import HandoverPolicy
 from drake_uuv.models.handover import HandoverRule
+from drake_uuv.models.particle_filter import ParticleFilterParameters
 from drake_uuv.models.unscented import (
     DEFAULT_PARAMETERS,
     SigmaPointParameters,
@@ -69,6 +70,7 @@ class UnscentedRangeEstimator(LinearStartEstimator):
         gate_probability: float | None = None,
         sigma_points: SigmaPointParameters = DEFAULT_PARAMETERS,
         vehicle_motion: str = "commanded",
+        particle_parameters: ParticleFilterParameters | None = None,
     ) -> None:
         super().__init__(
             time_step,
@@ -81,6 +83,7 @@ class UnscentedRangeEstimator(LinearStartEstimator):
             handover,
             gate_probability,
             vehicle_motion,
+            particle_parameters,
         )
         if not isinstance(sigma_points, SigmaPointParameters):
             raise ValueError(f"sigma_points: must be SigmaPointParameters, got {sigma_points!r}")

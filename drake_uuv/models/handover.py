@@ -129,10 +129,15 @@ class HandoverRule:
 
     After ``linear_steps_done`` linear updates ending with estimate ``x``, covariance ``P``
     and baseline ``q_s``, :meth:`handover_due` is true when ``max_linear_steps`` is reached, or
-    when at least ``min_linear_steps`` were done, the prior's share ``tr S_qq / tr P_qq`` is at
-    most ``prior_share`` and (unless ``angle_tolerance`` is None) every cross-range angle
-    :func:`cross_range_angle` is at most ``angle_tolerance``. ``max_linear_steps = 0``
-    disables the linear start.
+    when :meth:`prior_forgotten` (test 1, after at least ``min_linear_steps``) and
+    :meth:`gaussian_holds` (test 2, unless ``angle_tolerance`` is None, and the second-order
+    test if set). ``max_linear_steps = 0`` disables the linear start.
+
+    With ``particle_bridge``, a Gaussian filter whose prior is forgotten but whose Gaussian
+    test fails carries its posterior on particles until :meth:`gaussian_holds` on the
+    particles' mean and covariance, and goes back to particles when :meth:`fallback_due`
+    (an angle above ``fallback_factor · angle_tolerance``: the hysteresis keeps it from
+    switching at every step).
     """
 
     angle_tolerance: float | None = 0.25
@@ -142,6 +147,11 @@ class HandoverRule:
     # For a filter that drops the second-order term (the EKF): also require
     # tr(P⊥)/(2d) ≤ second_order_tolerance · σ/√f (None: no such test).
     second_order_tolerance: float | None = None
+    # Particles between the linear start and the Gaussian filter, and wherever the Gaussian
+    # test fails later (needs angle_tolerance).
+    particle_bridge: bool = False
+    # Back to particles when a cross-range angle exceeds fallback_factor · angle_tolerance.
+    fallback_factor: float = 1.2
 
     def __post_init__(self) -> None:
         if self.angle_tolerance is not None and not (
@@ -158,11 +168,58 @@ class HandoverRule:
             raise ValueError(f"min_linear_steps: must be ≥ 0, got {self.min_linear_steps!r}")
         if self.max_linear_steps is not None and self.max_linear_steps < 0:
             raise ValueError(f"max_linear_steps: must be ≥ 0, got {self.max_linear_steps!r}")
+        if not self.fallback_factor >= 1.0:  # inf: never back to particles
+            raise ValueError(f"fallback_factor: must be ≥ 1, got {self.fallback_factor!r}")
+        if self.particle_bridge and self.angle_tolerance is None:
+            raise ValueError(
+                "particle_bridge: needs an angle_tolerance to leave the particles, got None"
+            )
 
     @property
     def linear_start(self) -> bool:
         """Whether a filter begins with linear-KF updates (``max_linear_steps != 0``)."""
         return self.max_linear_steps is None or self.max_linear_steps > 0
+
+    def prior_forgotten(
+        self, P: np.ndarray, linear_steps_done: int, prior_covariance: np.ndarray
+    ) -> bool:
+        """Test 1 (or ``max_linear_steps`` reached): the KF's covariance rests on its data.
+
+        ``prior_covariance`` is the prior's share ``S`` of ``P``."""
+        if self.max_linear_steps is not None and linear_steps_done >= self.max_linear_steps:
+            return True
+        if linear_steps_done < self.min_linear_steps:
+            return False
+        prior = float(np.trace(np.asarray(prior_covariance, dtype=float)[:3, :3]))
+        return prior <= self.prior_share * float(np.trace(np.asarray(P, dtype=float)[:3, :3]))
+
+    def gaussian_holds(
+        self,
+        x: np.ndarray,
+        P: np.ndarray,
+        q_s: np.ndarray,
+        noise_std: np.ndarray | None = None,
+    ) -> bool:
+        """Test 2 and, with ``second_order_tolerance``, the second-order test (``noise_std``
+        the per-sonar ``√(η/f)``): a Gaussian describes the posterior ``N(x, P)``."""
+        if self.angle_tolerance is not None and not np.all(
+            cross_range_angle(x, P, q_s) <= self.angle_tolerance
+        ):
+            return False
+        if self.second_order_tolerance is None:
+            return True
+        if noise_std is None:
+            raise ValueError("noise_std: needed with second_order_tolerance, got None")
+        limit = self.second_order_tolerance * np.asarray(noise_std, dtype=float)
+        return bool(np.all(second_order_range_error(x, P, q_s) <= limit))
+
+    def fallback_due(self, x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> bool:
+        """With ``particle_bridge``: a Gaussian filter's ``N(x, P)`` has become too wide for a
+        Gaussian (a cross-range angle above ``fallback_factor · angle_tolerance``)."""
+        if not self.particle_bridge:
+            return False
+        limit = self.fallback_factor * float(self.angle_tolerance)
+        return bool(np.any(cross_range_angle(x, P, q_s) > limit))
 
     def handover_due(
         self,
@@ -178,19 +235,6 @@ class HandoverRule:
         ``noise_std`` the per-sonar ``√(η/f)``, needed with ``second_order_tolerance``)."""
         if self.max_linear_steps is not None and linear_steps_done >= self.max_linear_steps:
             return True
-        if linear_steps_done < self.min_linear_steps:
+        if not self.prior_forgotten(P, linear_steps_done, prior_covariance):
             return False
-        P = np.asarray(P, dtype=float)
-        prior = float(np.trace(np.asarray(prior_covariance, dtype=float)[:3, :3]))
-        if not prior <= self.prior_share * float(np.trace(P[:3, :3])):
-            return False
-        if self.angle_tolerance is not None and not np.all(
-            cross_range_angle(x, P, q_s) <= self.angle_tolerance
-        ):
-            return False
-        if self.second_order_tolerance is None:
-            return True
-        if noise_std is None:
-            raise ValueError("noise_std: needed with second_order_tolerance, got None")
-        limit = self.second_order_tolerance * np.asarray(noise_std, dtype=float)
-        return bool(np.all(second_order_range_error(x, P, q_s) <= limit))
+        return self.gaussian_holds(x, P, q_s, noise_std)

@@ -95,7 +95,8 @@ class RawRangeOptions(EstimatorOptions):
       linear_start_position_variance`` [m²], which a far or noisy target never reaches.
 
     ``linear_start_max_steps`` forces the hand-over after that many linear updates (None:
-    never; 0: no linear start).
+    never; 0: no linear start). The ``particle_*`` fields shape the particle cloud of the
+    particle filter, and of a Gaussian filter's particle bridge.
     """
 
     planning_measurement: ClassVar[str] = "ranges"
@@ -105,6 +106,11 @@ class RawRangeOptions(EstimatorOptions):
     handover_angle: float | None = 0.25
     linear_start_position_variance: float = 0.5
     linear_start_max_steps: int | None = None
+    particle_count: int = 5000
+    # Resample when the effective sample size falls below this fraction of the count.
+    particle_resample_threshold: float = 0.5
+    # The regularisation kernel's bandwidth, times the Gaussian kernel's optimal one (0: none).
+    particle_bandwidth_scale: float = 1.0
 
     def validate(self, name: str) -> None:
         super().validate(name)
@@ -117,6 +123,16 @@ class RawRangeOptions(EstimatorOptions):
         )
         if self.linear_start_max_steps is not None and self.linear_start_max_steps < 0:
             fail(f"{name}.linear_start_max_steps", "must be ≥ 0", self.linear_start_max_steps)
+        if isinstance(self.particle_count, bool) or not isinstance(self.particle_count, int):
+            fail(f"{name}.particle_count", "must be an integer", self.particle_count)
+        if not 10 <= self.particle_count <= 10_000_000:
+            fail(f"{name}.particle_count", "must be in [10, 1e7]", self.particle_count)
+        if not 0.0 <= self.particle_resample_threshold <= 1.0:
+            fail(f"{name}.particle_resample_threshold", "must be in [0, 1]",
+                 self.particle_resample_threshold)  # fmt: skip
+        check_positive(
+            f"{name}.particle_bandwidth_scale", self.particle_bandwidth_scale, strict=False
+        )
 
     def handover_rule(self) -> HandoverRule | HandoverPolicy:
         """The hand-over these fields describe."""
@@ -130,11 +146,48 @@ class RawRangeOptions(EstimatorOptions):
             prior_share=self.handover_prior_share,
             max_linear_steps=self.linear_start_max_steps,
             second_order_tolerance=getattr(self, "handover_second_order", None),
+            particle_bridge=getattr(self, "particle_bridge", False),
+            fallback_factor=getattr(self, "particle_fallback_factor", 1.2),
+        )
+
+    def particle_parameters(self) -> ParticleFilterParameters:
+        """The particle cloud's parameters these fields describe."""
+        return ParticleFilterParameters(
+            count=self.particle_count,
+            resample_threshold=self.particle_resample_threshold,
+            bandwidth_scale=self.particle_bandwidth_scale,
         )
 
 
 @dataclass
-class LinearizedRangeOptions(RawRangeOptions):
+class GaussianRangeOptions(RawRangeOptions):
+    """Fields of the Gaussian filters on the raw ranges (EKF, IEKF, UKF).
+
+    With ``particle_bridge`` (and ``handover: rule``), where the rule's prior is forgotten but
+    its Gaussian test fails (noise large against the range: σ = 0.5 or 1 m at 2.8 m), the
+    filter carries its posterior on ``particle_count`` particles until the Gaussian test holds
+    on their mean and covariance, and goes back to particles when a cross-range angle exceeds
+    ``particle_fallback_factor × handover_angle``. Without it the filter stays the paper's KF
+    until the Gaussian test holds, which at σ = 1 m is never.
+    """
+
+    particle_bridge: bool = True
+    particle_fallback_factor: float = 1.2
+
+    def validate(self, name: str) -> None:
+        super().validate(name)
+        if not isinstance(self.particle_bridge, bool):
+            fail(f"{name}.particle_bridge", "must be true or false", self.particle_bridge)
+        if not self.particle_fallback_factor >= 1.0:
+            fail(f"{name}.particle_fallback_factor", "must be ≥ 1", self.particle_fallback_factor)
+        if self.particle_bridge and self.handover == "rule" and self.handover_angle is None:
+            fail(f"{name}.handover_angle",
+                 "must be set with particle_bridge (the bridge leaves the particles on it)",
+                 None)  # fmt: skip
+
+
+@dataclass
+class LinearizedRangeOptions(GaussianRangeOptions):
     """Fields of the filters that linearise the ranges (EKF, IEKF)."""
 
     # Such a filter drops the ranges' second-order term: the rule also requires
@@ -158,7 +211,7 @@ class Iekf(LinearizedRangeOptions):
 
 
 @dataclass
-class Ukf(RawRangeOptions):
+class Ukf(GaussianRangeOptions):
     """Unscented Kalman filter on both raw ranges (scaled unscented transform, α = 1, β = 2,
     κ = 3 − n: sigma points at ±√3 σ, every weight positive)."""
 
@@ -170,33 +223,16 @@ class ParticleFilter(RawRangeOptions):
     needs no angle test (particles carry a curved posterior)."""
 
     handover_angle: float | None = None
-    particle_count: int = 5000
-    # Resample when the effective sample size falls below this fraction of the count.
-    particle_resample_threshold: float = 0.5
-    # The regularisation kernel's bandwidth, times the Gaussian kernel's optimal one (0: none).
-    particle_bandwidth_scale: float = 1.0
 
     def validate(self, name: str) -> None:
         super().validate(name)
-        if not 10 <= self.particle_count <= 10_000_000:
-            fail(f"{name}.particle_count", "must be in [10, 1e7]", self.particle_count)
-        if not 0.0 <= self.particle_resample_threshold <= 1.0:
-            fail(f"{name}.particle_resample_threshold", "must be in [0, 1]",
-                 self.particle_resample_threshold)  # fmt: skip
-        check_positive(
-            f"{name}.particle_bandwidth_scale", self.particle_bandwidth_scale, strict=False
-        )
         if self.linear_start_max_steps == 0:
             fail(f"{name}.linear_start_max_steps",
                  "must not be 0: the particles are drawn from the linear start", 0)  # fmt: skip
 
     def parameters(self) -> ParticleFilterParameters:
-        """The particle filter's parameters these fields describe."""
-        return ParticleFilterParameters(
-            count=self.particle_count,
-            resample_threshold=self.particle_resample_threshold,
-            bandwidth_scale=self.particle_bandwidth_scale,
-        )
+        """The particle filter's parameters (:meth:`particle_parameters`)."""
+        return self.particle_parameters()
 
 
 #: The estimator slot. The first member is the default of an untagged section.

@@ -21,12 +21,17 @@ from pydrake.systems.primitives import (
     ZeroOrderHold,
 )
 
-from drake_uuv.estimators.linear_start import LINEAR_PHASE, RANGE_PHASE
+from drake_uuv.estimators.linear_start import LINEAR_PHASE, PARTICLE_PHASE, RANGE_PHASE
 from drake_uuv.estimators.particle_filter import ParticleRangeEstimator
 from drake_uuv.estimators.raw_range_filter import RawRangeEstimator
 from drake_uuv.estimators.unscented_filter import UnscentedRangeEstimator
 from drake_uuv.models.filters import HandoverPolicy, predict, range_difference_update
-from drake_uuv.models.handover import HandoverRule, prior_share_predict, prior_share_update
+from drake_uuv.models.handover import (
+    HandoverRule,
+    cross_range_angle,
+    prior_share_predict,
+    prior_share_update,
+)
 from drake_uuv.models.measurement import (
     DROPPED,
     VALID,
@@ -56,6 +61,9 @@ X_TRUE = np.array([-2.0, -2.0, 0.3, 0.0, 0.0, 0.0])
 A, B = double_integrator(T)
 R = np.diag(ETA / F)
 RANGE_ONLY = HandoverRule(max_linear_steps=0)
+# The Gaussian filters' rules without and with the particle bridge.
+NO_BRIDGE = HandoverRule(second_order_tolerance=1.0)
+BRIDGE = HandoverRule(particle_bridge=True)
 COUNT = 400
 PARAMS = ParticleFilterParameters(count=COUNT)
 
@@ -101,7 +109,7 @@ def pf_context(seed_value: float = 0.25, **overrides):
     context = fixed_context(system, particle_seed=[seed_value], **inputs(**overrides))
     particles = initial_particles(X0, P0, COUNT, np.random.default_rng(1))
     log_w = -np.log(np.random.default_rng(2).uniform(1.0, 2.0, COUNT))  # unequal weights
-    context.SetDiscreteState(system.start_state_index, [RANGE_PHASE, 3.0])
+    context.SetDiscreteState(system.start_state_index, [PARTICLE_PHASE, 3.0])
     context.SetDiscreteState(system.particles_index, particles.ravel())
     context.SetDiscreteState(system.log_weights_index, log_w)
     return system, context, particles, log_w
@@ -110,12 +118,16 @@ def pf_context(seed_value: float = 0.25, **overrides):
 # ---------------------------------------------------------------------------------- ports
 
 
-@pytest.mark.parametrize("make", [ukf, pf])
+def bridged_ekf():
+    return ekf(particle_parameters=PARAMS)
+
+
+@pytest.mark.parametrize("make", [ukf, pf, bridged_ekf])
 def test_ports_match_the_raw_range_estimator(make):
     system = make()
-    reference = ekf()
+    reference = ekf(handover=NO_BRIDGE)
     names = [reference.get_input_port(i).get_name() for i in range(reference.num_input_ports())]
-    extra = ["particle_seed"] if isinstance(system, ParticleRangeEstimator) else []
+    extra = ["particle_seed"] if system.particle_parameters is not None else []
     assert [system.get_input_port(i).get_name() for i in range(system.num_input_ports())] == [
         *names,
         *extra,
@@ -200,23 +212,30 @@ def test_linear_phase_is_the_papers_kf_and_the_prior_share_follows_it(make):
     )
 
 
-@pytest.mark.parametrize("make", [ekf, ukf, pf])
-@pytest.mark.parametrize(("share", "phase"), [(0.01, RANGE_PHASE), (0.5, LINEAR_PHASE)])
-def test_hand_over_when_the_prior_is_forgotten_and_the_angle_is_small(make, share, phase):
+@pytest.mark.parametrize(("make", "after"), [(ekf, RANGE_PHASE), (ukf, RANGE_PHASE),
+                                             (pf, PARTICLE_PHASE)])  # fmt: skip
+@pytest.mark.parametrize("forgotten", [True, False])
+def test_hand_over_when_the_prior_is_forgotten_and_the_angle_is_small(make, after, forgotten):
     system = make(handover=HandoverRule())
     context = fixed_context(system, **inputs(), **_seed(system))
-    context.SetDiscreteState(system.prior_share_index, (share * P0).ravel())
+    context.SetDiscreteState(system.prior_share_index, ((0.01 if forgotten else 0.5) * P0).ravel())
     # tr P_qq ≈ 0.6 m² at 2.9 m: θ ≈ 0.2 rad < 0.25, so only the share decides.
+    phase = after if forgotten else LINEAR_PHASE
     assert_allclose(discrete_update(system, context, system.start_state_index), [phase, 1])
+
+
+def wide_linear_context(system):
+    """A linear-phase context whose prior is forgotten but whose KF is wide: θ ≈ 0.6 rad."""
+    context = fixed_context(system, **inputs(), **_seed(system))
+    context.SetDiscreteState(1, (P0 * 8.0).ravel())
+    context.SetDiscreteState(system.prior_share_index, (1e-3 * P0).ravel())
+    return context
 
 
 @pytest.mark.parametrize("make", [ekf, ukf])
 def test_a_wide_angle_keeps_a_gaussian_filter_linear_but_not_the_particle_filter(make):
-    wide = P0 * 8.0  # θ ≈ 0.6 rad
-    for system, expected in ((make(handover=HandoverRule()), LINEAR_PHASE), (pf(), RANGE_PHASE)):
-        context = fixed_context(system, **inputs(), **_seed(system))
-        context.SetDiscreteState(1, wide.ravel())
-        context.SetDiscreteState(system.prior_share_index, (1e-3 * P0).ravel())
+    for system, expected in ((make(handover=HandoverRule()), LINEAR_PHASE), (pf(), PARTICLE_PHASE)):
+        context = wide_linear_context(system)
         assert discrete_update(system, context, system.start_state_index)[0] == expected
 
 
@@ -239,7 +258,7 @@ def test_a_step_without_both_ranges_only_predicts_in_the_linear_phase(make):
 
 def test_the_ekf_accepts_both_hand_overs():
     # The rule by default, with the second-order test the EKF needs.
-    assert ekf().handover == HandoverRule(second_order_tolerance=1.0)
+    assert ekf().handover == HandoverRule(second_order_tolerance=1.0, particle_bridge=True)
     assert isinstance(ekf(handover=HandoverPolicy()).handover, HandoverPolicy)
     system = ekf(handover=HandoverRule())
     context = fixed_context(system, **inputs())
@@ -305,9 +324,99 @@ def test_particle_filter_draws_its_cloud_from_the_kf_at_the_hand_over():
     moved, log_next, _ = pf_predict(
         drawn, np.full(COUNT, -math.log(COUNT)), A_W, A, B, W, rng, PARAMS
     )
-    assert_allclose(discrete_update(system, context, system.start_state_index), [RANGE_PHASE, 1])
+    assert_allclose(discrete_update(system, context, system.start_state_index), [PARTICLE_PHASE, 1])
     assert_array_equal(discrete_update(system, context, system.particles_index), moved.ravel())
     assert_array_equal(discrete_update(system, context, system.log_weights_index), log_next)
+
+
+# ------------------------------------------------------------------------ particle bridge
+
+
+def bridged(make, **kwargs):
+    """``make``'s filter with the particle bridge (and, for the EKF, its second-order test)."""
+    second_order = 1.0 if make is ekf else None
+    rule = HandoverRule(particle_bridge=True, second_order_tolerance=second_order)
+    return make(handover=rule, particle_parameters=PARAMS, **kwargs)
+
+
+def drawn_and_predicted(x, P, seed_value=0.5):
+    """The cloud a bridge draws from ``N(x, P)`` with the seed port at ``seed_value``, predicted."""
+    rng = np.random.default_rng(int(seed_value * 2.0**53))
+    drawn = initial_particles(x, P, COUNT, rng)
+    return pf_predict(drawn, np.full(COUNT, -math.log(COUNT)), A_W, A, B, W, rng, PARAMS)
+
+
+@pytest.mark.parametrize("make", [ekf, ukf])
+def test_a_bridged_gaussian_filter_draws_particles_where_its_gaussian_fails(make):
+    # Prior forgotten, KF wide (θ ≈ 0.6 rad): without the bridge the filter stays linear
+    # (above), with it the particles are drawn from the KF's Gaussian of this step.
+    system = bridged(make)
+    context = wide_linear_context(system)
+    x, P, status, _ = filtered(system, context)
+    assert status == VALID
+    moved, log_next, _ = drawn_and_predicted(x, P)
+    assert_allclose(discrete_update(system, context, system.start_state_index), [PARTICLE_PHASE, 1])
+    assert_array_equal(discrete_update(system, context, system.particles_index), moved.ravel())
+    assert_array_equal(discrete_update(system, context, system.log_weights_index), log_next)
+    mean, cov = weighted_moments(moved, np.exp(log_next))
+    assert_allclose(discrete_update(system, context, 0), mean, rtol=1e-14)
+    assert_allclose(discrete_update(system, context, 1).reshape(6, 6), cov, rtol=1e-12)
+
+
+def particle_phase_context(system, spread: float):
+    """A bridged filter in its particle phase, its cloud about X_TRUE with covariance
+    ``spread²·I`` (position) and 0.01·I (velocity)."""
+    context = fixed_context(system, particle_seed=[0.5], **inputs())
+    cov = np.diag([spread**2] * 3 + [0.01] * 3)
+    particles = initial_particles(X_TRUE, cov, COUNT, np.random.default_rng(1))
+    context.SetDiscreteState(system.start_state_index, [PARTICLE_PHASE, 7.0])
+    context.SetDiscreteState(system.particles_index, particles.ravel())
+    context.SetDiscreteState(system.log_weights_index, np.full(COUNT, -math.log(COUNT)))
+    return context, particles
+
+
+@pytest.mark.parametrize("make", [ekf, ukf])
+@pytest.mark.parametrize(("spread", "after"), [(0.2, RANGE_PHASE), (1.5, PARTICLE_PHASE)])
+def test_a_bridged_filter_takes_its_gaussian_back_when_the_particles_are_narrow(
+    make, spread, after
+):
+    # The particle step is the particle filter's; the Gaussian test on the particles'
+    # posterior decides: 0.2 m at 2.9 m is ≈ 0.1 rad, 1.5 m far above 0.25 rad.
+    system = bridged(make)
+    context, particles = particle_phase_context(system, spread)
+    z = samples().reshape(2, F).mean(axis=1)
+    x, P, nis, _ = pf_update(particles, np.full(COUNT, -math.log(COUNT)), z, Q_S, R)
+    x_hat, P_hat, status, nis_hat = filtered(system, context)
+    assert_array_equal(x_hat, x)
+    assert_array_equal(P_hat, P)
+    assert (status, nis_hat) == (VALID, nis)
+    assert_allclose(discrete_update(system, context, system.start_state_index), [after, 7])
+    if after == RANGE_PHASE:  # the Gaussian filter predicts from the particles' posterior
+        x_next, P_next = predict(x, P, A_W, A, B, process_noise_covariance(W, T))
+        assert_allclose(discrete_update(system, context, 0), x_next, rtol=1e-13)
+        assert_allclose(discrete_update(system, context, 1).reshape(6, 6), P_next, rtol=1e-12)
+
+
+@pytest.mark.parametrize(("scale", "after"), [(1.0, RANGE_PHASE), (12.0, PARTICLE_PHASE)])
+def test_a_bridged_ukf_falls_back_to_particles_when_its_gaussian_widens(scale, after):
+    # In its range phase the UKF updates as without the bridge; a posterior wider than
+    # 1.2 × 0.25 rad across the line of sight sends it back to particles drawn from it.
+    system = bridged(ukf)
+    context = fixed_context(system, particle_seed=[0.5], **inputs())
+    context.SetDiscreteState(system.start_state_index, [RANGE_PHASE, 9.0])
+    context.SetDiscreteState(1, (scale * P0).ravel())
+    z = samples().reshape(2, F).mean(axis=1)
+    x, P, _ = ukf_range_update(X0, scale * P0, z, Q_S, R)
+    x_hat, P_hat, *_ = filtered(system, context)
+    assert_allclose(x_hat, x, rtol=1e-13, atol=1e-15)
+    assert_allclose(P_hat, P, rtol=1e-13, atol=1e-15)
+    angle = float(np.max(cross_range_angle(x, P, Q_S)))
+    assert (angle > 0.3) is (after == PARTICLE_PHASE)
+    assert_allclose(discrete_update(system, context, system.start_state_index), [after, 9])
+    if after == PARTICLE_PHASE:
+        moved, log_next, _ = drawn_and_predicted(x, P)
+        particles = discrete_update(system, context, system.particles_index)
+        assert_array_equal(particles, moved.ravel())
 
 
 def build_loop(handover: HandoverRule):

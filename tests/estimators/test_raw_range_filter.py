@@ -235,7 +235,9 @@ def test_make_estimator_builds_the_raw_range_filters(kind: str, tag: str) -> Non
     system = make_estimator(scenario)
     assert isinstance(system, RawRangeEstimator) and system.method == kind
     assert system.GetInputPort("range_samples").size() == 8
-    assert system.handover == HandoverRule(max_linear_steps=50, second_order_tolerance=1.0)
+    assert system.handover == HandoverRule(
+        max_linear_steps=50, second_order_tolerance=1.0, particle_bridge=True
+    )
     threshold = load_scenario(
         "paper", [f"estimator=!{tag}", "estimator.handover=threshold",
                   "estimator.linear_start_position_variance=0.3"]

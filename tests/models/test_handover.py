@@ -129,6 +129,11 @@ def test_the_angle_test_scales_with_the_range():
         ({"prior_share": float("nan")}, r"^prior_share: must be > 0, got nan$"),
         ({"min_linear_steps": -1}, r"^min_linear_steps: must be ≥ 0, got -1$"),
         ({"max_linear_steps": -2}, r"^max_linear_steps: must be ≥ 0, got -2$"),
+        ({"fallback_factor": 0.9}, r"^fallback_factor: must be ≥ 1, got 0.9$"),
+        (
+            {"particle_bridge": True, "angle_tolerance": None},
+            r"^particle_bridge: needs an angle_tolerance to leave the particles, got None$",
+        ),
     ],
 )
 def test_bad_parameters_raise(kwargs, message):
@@ -155,3 +160,38 @@ def test_second_order_test_compares_with_the_range_noise(noise_std, due):
         rule.handover_due(P, 5, **kwargs)
     with pytest.raises(ValueError, match=r"^second_order_tolerance: must be > 0 or None, got 0.0$"):
         HandoverRule(second_order_tolerance=0.0)
+
+
+def at_angle(angle: float, d: float = 4.0):
+    """``(x, P, q_s)`` with every cross-range angle exactly ``angle`` (zero baseline, the
+    cross-range variance on the y axis)."""
+    x = np.array([d, 0.0, 0.0, 0.0, 0.0, 0.0])
+    P = np.diag([0.5, (angle * d) ** 2, 0.0, 0.1, 0.1, 0.1])
+    return x, P, np.zeros(3)
+
+
+@pytest.mark.parametrize(
+    ("angle", "holds", "falls_back"),
+    [(0.2, True, False), (0.24, True, False), (0.29, False, False), (0.31, False, True)],
+)
+def test_the_bridge_hysteresis(angle, holds, falls_back):
+    # Tolerance 0.25 rad, factor 1.2: a Gaussian between 0.25 and 0.3 rad is neither taken up
+    # from particles nor given up for them.
+    x, P, q_s = at_angle(angle)
+    rule = HandoverRule(particle_bridge=True)
+    assert_allclose(cross_range_angle(x, P, q_s), angle, rtol=1e-14)
+    assert rule.gaussian_holds(x, P, q_s) is holds
+    assert rule.fallback_due(x, P, q_s) is falls_back
+    assert not HandoverRule().fallback_due(x, P, q_s)  # no bridge, no fallback
+
+
+@pytest.mark.parametrize("share", [0.05, 0.2])
+@pytest.mark.parametrize("cross", [0.4, 2.0])
+def test_handover_is_the_prior_test_and_the_gaussian_test(share, cross):
+    inputs, P = rule_inputs(share, cross)
+    rule = HandoverRule()
+    both = rule.prior_forgotten(P, 5, inputs["prior_covariance"]) and rule.gaussian_holds(
+        inputs["x"], P, inputs["q_s"]
+    )
+    assert rule.handover_due(P, 5, **inputs) is both
+    assert rule.prior_forgotten(P, 5, inputs["prior_covariance"]) is (share <= 0.1)
