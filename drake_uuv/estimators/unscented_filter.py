@@ -30,10 +30,13 @@ class UnscentedRangeEstimator(LinearStartEstimator):
     1.18×, 1.26×; the particle filter 1.02–1.04×).
 
     The start and the hand-over are :class:`~drake_uuv.estimators.linear_start.
-    LinearStartEstimator`'s, by default :class:`~drake_uuv.models.handover.HandoverRule` ``()``:
-    a Gaussian filter on the ranges needs the cross-range spread small against the range
-    whatever its sigma points. Timing, prediction, the NIS gate and the common ports are
-    those of :class:`~drake_uuv.estimators.base.RelativeStateEstimator`.
+    LinearStartEstimator`'s, by default :class:`~drake_uuv.models.handover.HandoverRule`
+    ``(particle_bridge=True)``: a Gaussian filter on the ranges needs the cross-range spread
+    small against the range whatever its sigma points, and where it is not (σ = 0.5 or 1 m
+    at 2.8 m) the posterior is carried on particles until it is (numpy loop, σ = 1 m, 40
+    runs: 1.00× the bound, none lost; without the bridge the filter stays the paper's KF,
+    3.5×). Timing, prediction, the NIS gate and the common ports are those of
+    :class:`~drake_uuv.estimators.base.RelativeStateEstimator`.
 
     .. pydrake_system::
 
@@ -43,6 +46,7 @@ class UnscentedRangeEstimator(LinearStartEstimator):
         - b_W
         - sonar_status
         - u1_W
+        - particle_seed
         output_ports:
         - x_TU_hat
         - P_TU
@@ -53,6 +57,7 @@ class UnscentedRangeEstimator(LinearStartEstimator):
 
     - ``range_samples`` (2f): sonar 1's f samples then sonar 2's [m]; NaN without a return.
     - ``b_W`` (3): world sonar baseline ``q_s = R_WB b``.
+    - ``particle_seed`` (1, random uniform, with the bridge): seeds the particles' draws.
     - Common ports (``sonar_status``, ``u1_W`` or ``p_WU``, ``v_WU``, the outputs): see the
       base class.
     """

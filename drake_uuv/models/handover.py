@@ -30,6 +30,17 @@ A particle filter needs no Gaussian posterior, so it uses test 1 alone
 (``angle_tolerance=None``): it draws its particles from the KF's Gaussian once that Gaussian
 is an honest description of the KF's error.
 
+Where test 1 holds and test 2 never does (σ = 1 m at 2.8 m: the posterior's angular spread
+stays near 0.3 rad), a Gaussian filter would stay the paper's KF for ever. With
+``particle_bridge`` it does what the particle filter does instead: at the update where test 1
+holds and test 2 fails, it draws particles from the KF's Gaussian and carries the posterior
+on them, and takes its Gaussian update back at the first update whose particle posterior
+passes test 2 (and the second-order test, for the EKF). Because a Gaussian filter's
+covariance can widen again (its steady state at σ = 1 m is wider than the moment it took
+over), it returns to particles, drawn from its own Gaussian, when an angle exceeds
+``fallback_factor · angle_tolerance``; the gap between the two thresholds keeps it from
+switching at every step.
+
 Measurements (plain numpy closed loop, ``python benchmarks/estimator_regimes.py``, which
 prints the commands' table; "paper" is σ = 0.1 m with q* = [−2, −2, 0] in the body frame,
 "world" holds q* in the world frame; ratios are position RMSE over k ≥ 200 against the mean
@@ -57,6 +68,16 @@ per-run posterior Cramér–Rao bound):
   ``second_order_tolerance = 1`` none (1.26× the bound; still inconsistent, NEES 13.9: the
   dropped term stays comparable to the noise in its steady state). The UKF keeps the term
   and the particle filter has none to drop: they leave it out.
+* The bridge (40 runs per cell, ``--bridge``; EKF with the second-order test, UKF without):
+  at σ = 1 m (paper frame) a one-way bridge (no fallback) lets every run take its Gaussian
+  back (median step 68), after which the UKF holds (1.05×, NEES 6.6) but the EKF does not
+  (7.5×, NEES 347, 1 run lost): its steady state widens past the angle it took over at
+  (0.15 gives the same; 0.1 never takes it back, 1.00×). With the fallback at 1.2 × 0.25
+  rad the EKF is at 1.01× (NEES 6.1) and the UKF at 1.00× (5.9), none lost, with 16
+  returns to particles per run (1.5: 1.06× and 1.01×, EKF NEES 7.0, 9 per run). σ = 0.5 m:
+  EKF 1.03×, UKF 1.00× (KF 2.60×). In the paper scenario and at 2.8 and 14 m (world) the
+  results are those without the bridge (it hands over from the KF directly, or within two
+  steps); at 28 m the same RMSE. The default is ``fallback_factor = 1.2``.
 """
 
 from __future__ import annotations

@@ -373,8 +373,15 @@ scales with noise and range; after each linear update it requires
    most {ekf.handover_second_order:g} × the range noise σ/√f.
 
 The particle filter carries a curved posterior, so it takes test 1 alone and draws its
-particles from the KF's Gaussian then. A filter that never passes the tests stays the KF, bit
-for bit: runs (of {runs}) whose EKF or UKF left the KF, by regime: {"; ".join(handed_over)}.
+particles from the KF's Gaussian then. Where test 1 holds and test 2 fails, which at σ = 1 m
+is the whole run, the EKF and UKF do the same (the **particle bridge**, `particle_bridge:
+true`, the default, {ekf.particle_count} particles): they carry the posterior on particles
+until test 2 (and 3) holds on the particles' mean and covariance, then take their Gaussian
+update back, and return to particles drawn from their Gaussian when an angle exceeds
+{ekf.particle_fallback_factor:g} × {ekf.handover_angle:g} rad (a Gaussian filter's steady
+state can be wider than the moment it took over). Without the bridge they stay the KF, bit for
+bit, where test 2 never holds. Runs (of {runs}) whose EKF or UKF left the KF, by regime:
+{"; ".join(handed_over)}. The paper's KF has no range update and so no bridge.
 
 ### The table
 

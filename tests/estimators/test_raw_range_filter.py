@@ -243,3 +243,43 @@ def test_make_estimator_builds_the_raw_range_filters(kind: str, tag: str) -> Non
                   "estimator.linear_start_position_variance=0.3"]
     )  # fmt: skip
     assert make_estimator(threshold).handover == HandoverPolicy(0.3, 1, None)
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (["estimator=!Ukf", "estimator.particle_fallback_factor=0.5"],
+         r"^estimator.particle_fallback_factor: must be ≥ 1, got 0.5$"),
+        (["estimator=!Ekf", "estimator.handover_angle=null"],
+         r"^estimator.handover_angle: must be set with particle_bridge .*, got None$"),
+        (["estimator=!Ekf", "estimator.particle_count=5"],
+         r"^estimator.particle_count: must be in \[10, 1e7\], got 5$"),
+        (["estimator=!PaperKf", "estimator.particle_bridge=true"],
+         r"^estimator.particle_bridge: unknown field"),
+        (["estimator=!ParticleFilter", "estimator.particle_bridge=false"],
+         r"^estimator.particle_bridge: unknown field"),
+    ],
+)  # fmt: skip
+def test_bad_bridge_values_name_the_field(overrides: list[str], message: str) -> None:
+    with pytest.raises(ScenarioError, match=message):
+        load_scenario("paper", overrides)
+
+
+@pytest.mark.parametrize("tag", ["Ekf", "Iekf", "Ukf"])
+def test_the_scenario_sets_the_bridge_of_each_gaussian_filter(tag: str) -> None:
+    bridged = make_estimator(load_scenario("paper", [f"estimator=!{tag}",
+                                                     "estimator.particle_count=300",
+                                                     "estimator.particle_fallback_factor=1.5"]))  # fmt: skip
+    assert bridged.handover.particle_bridge and bridged.handover.fallback_factor == 1.5
+    assert bridged.particle_parameters.count == 300
+    assert bridged.HasInputPort("particle_seed")
+    plain = make_estimator(
+        load_scenario("paper", [f"estimator=!{tag}", "estimator.particle_bridge=false"])
+    )
+    assert not plain.handover.particle_bridge and plain.particle_parameters is None
+    assert not plain.HasInputPort("particle_seed")
+    # The absolute threshold has no Gaussian test to bridge: no particles either.
+    threshold = make_estimator(
+        load_scenario("paper", [f"estimator=!{tag}", "estimator.handover=threshold"])
+    )
+    assert threshold.particle_parameters is None

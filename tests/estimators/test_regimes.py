@@ -2,8 +2,9 @@
 
 The regimes are those of the ``regimes`` comparison group
 (:data:`drake_uuv.studies.comparison.REGIMES`): the paper's (σ = 0.1 m, q* = [−2, −2, 0] in
-the body frame) and σ = 0.5 m at the same standoff, where the paper's KF is far from the
-posterior Cramér–Rao bound and only the particle filter reaches it. Runs are shortened (300
+the body frame), σ = 0.5 m at the same standoff, where the paper's KF is far from the
+posterior Cramér–Rao bound and the particle filter reaches it, and σ = 1 m, where the EKF and
+UKF reach it only through their particle bridge. Runs are shortened (300
 steps, steady state k ≥ 150) to keep each test under about two minutes; the ratios carry a
 standard error from the run-to-run spread, and each test first checks that its runs resolve
 the margin it tests.
@@ -111,3 +112,33 @@ def test_hard_regime_the_particle_filter_is_within_1_25_and_the_kf_far_above(
     assert pf >= 1.0 - Z * se_pf, f"PF: {pf:.3f} ± {se_pf:.3f}: below the bound"
     assert kf - Z * se_kf > 1.25, f"KF: {kf:.3f} ± {se_kf:.3f}× the per-run bound"
     assert noisy_pf.summary["diverged_fraction"] == 0.0
+
+
+def _gaussian_study(tmp_path_factory, estimator: str, runs: int, *extra: str):
+    overrides = [*REGIMES["sigma1"][1], REGIME_ESTIMATORS[estimator], *extra, *SHORT]
+    scenario = load_scenario("paper", overrides, seed=SEED)
+    name = f"sigma1-{estimator}{'-plain' if extra else ''}"
+    return run_study(
+        Study(name, scenario, runs, tmp_path_factory.mktemp(name)),
+        workers=1,
+        progress=False,
+        figures=False,
+    )
+
+
+@pytest.mark.parametrize("estimator", ["ekf", "ukf"])
+def test_hardest_regime_the_bridged_gaussian_filters_are_within_1_25(
+    tmp_path_factory, estimator: str
+) -> None:
+    """σ = 1 m at 2.8 m, where the rule's Gaussian test never holds on the KF: with the
+    particle bridge (the default) the EKF and UKF are within 1.25× the per-run bound and no
+    run diverges; without it, on the same seeds, they are the paper's KF, far above."""
+    bridged = _gaussian_study(tmp_path_factory, estimator, 16)
+    plain = _gaussian_study(tmp_path_factory, estimator, 16, "estimator.particle_bridge=false")
+    ratio, se = ratio_and_error(bridged)
+    kf, se_kf = ratio_and_error(plain)
+    assert Z * se < 0.25, f"16 runs must resolve the 25 % margin (se {se:.3f})"
+    assert ratio <= 1.25, f"{ratio:.3f} ± {se:.3f}× the per-run bound"
+    assert ratio >= 1.0 - Z * se, f"{ratio:.3f} ± {se:.3f}: below the bound"
+    assert bridged.summary["diverged_fraction"] == 0.0
+    assert kf - Z * se_kf > 1.25, f"without the bridge: {kf:.3f} ± {se_kf:.3f}×"
