@@ -189,11 +189,18 @@ class StartedFilter:
                 self.particles, self.log_weights, z, q_s, self.R
             )
         else:
+            x_prior, P_prior = self.x, self.P
             self.x, self.P, self.nis = UPDATES[self.kind](self.x, self.P, z, q_s, self.R)
             if self.bridge and self.rule.rule.fallback_due(self.x, self.P, q_s):
                 self.bridging = True
                 self.fallbacks += 1
                 self._draw(self.x, self.P)
+            elif self.bridge and self.rule.rule.lost(self.nis):
+                # As the Drake filters: redraw from the widened prior, weighed by these ranges.
+                self.bridging = True
+                self.fallbacks += 1
+                self._draw(x_prior, P_prior * (self.nis / 2.0))
+                *_, self.log_weights = pf_update(self.particles, self.log_weights, z, q_s, self.R)
 
     def predict(self, a_W: np.ndarray) -> None:
         if (self.kind == "pf" or self.bridging) and self.particles is not None:

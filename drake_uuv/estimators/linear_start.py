@@ -65,7 +65,9 @@ class LinearStartEstimator(RelativeStateEstimator):
     * :data:`PARTICLE_PHASE` → :data:`RANGE_PHASE` when the rule's Gaussian test holds on the
       particles' mean and covariance, and back (particles drawn from the Gaussian filter's
       ``N(x̂, P)``) when an angle exceeds ``fallback_factor`` times its tolerance
-      (:meth:`~drake_uuv.models.handover.HandoverRule.fallback_due`).
+      (:meth:`~drake_uuv.models.handover.HandoverRule.fallback_due`), or drawn from the
+      step's prior widened by NIS/2 and weighed by the step's ranges when the innovation is
+      beyond any chance (:meth:`~drake_uuv.models.handover.HandoverRule.lost`).
 
     The particles are :mod:`drake_uuv.models.particle_filter`'s regularised particle filter:
     the filtered estimate of a particle step is the weighted mean and covariance of the
@@ -340,6 +342,17 @@ class LinearStartEstimator(RelativeStateEstimator):
                     next_phase = RANGE_PHASE
             elif phase == RANGE_PHASE and self._policy.fallback_due(filtered.x, filtered.P, q_s):
                 next_phase = PARTICLE_PHASE
+            elif phase == RANGE_PHASE and self._policy.lost(filtered.nis):
+                # The ranges contradict the Gaussian's prior: redraw from that prior, widened
+                # until this innovation is typical, and weigh the draw by this step's ranges.
+                x_prior = self._prior(context)
+                P_prior = context.get_discrete_state(self._P_index).get_value().reshape(6, 6)
+                widened = P_prior * (filtered.nis / 2.0)
+                discrete_state.set_value(self._start_index, np.array([PARTICLE_PHASE, done]))
+                self._advance_particles(
+                    context, filtered, discrete_state, draw=True, source=(x_prior, widened)
+                )
+                return
         # Groups 2 and 3 keep their values outside the linear phase.
         discrete_state.set_value(self._start_index, np.array([next_phase, done]))
         if next_phase == PARTICLE_PHASE:
@@ -371,14 +384,22 @@ class LinearStartEstimator(RelativeStateEstimator):
         filtered: FilteredEstimate,
         discrete_state: DiscreteValues,
         draw: bool,
+        source: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         """The particles' periodic update: drawn from ``N(x̂, P)`` of this step (``draw``) or
         reweighted by this step's ranges, then resampled, regularised and predicted; groups 0
-        and 1 become the predicted cloud's mean and covariance."""
+        and 1 become the predicted cloud's mean and covariance. With ``source = (x, P)`` the
+        draw is from ``N(x, P)``, a prior of this step, and is weighed by this step's ranges."""
         u = float(self._seed_port.Eval(context)[0])
         rng = np.random.default_rng(int(u * 2.0**_SEED_BITS))
         count = self._parameters.count
-        if draw:
+        if draw and source is not None:
+            particles = initial_particles(source[0], source[1], count, rng)
+            z, valid = self._means(context, self._status_port.Eval(context))
+            q_s = self._b_W_port.Eval(context)
+            uniform = np.full(count, -math.log(count))
+            log_weights = pf_update(particles, uniform, z, q_s, self._R, np.flatnonzero(valid))[3]
+        elif draw:
             particles = initial_particles(filtered.x, filtered.P, count, rng)
             log_weights = np.full(count, -math.log(count))
         else:

@@ -39,7 +39,11 @@ passes test 2 (and the second-order test, for the EKF). Because a Gaussian filte
 covariance can widen again (its steady state at σ = 1 m is wider than the moment it took
 over), it returns to particles, drawn from its own Gaussian, when an angle exceeds
 ``fallback_factor · angle_tolerance``; the gap between the two thresholds keeps it from
-switching at every step.
+switching at every step. A Gaussian filter can also go wrong with a narrow covariance (it
+slips onto the mirror solution, or trusts a linearisation that weak excitation leaves
+poor): when an innovation is beyond any chance under its own covariance (NIS above
+:data:`LOST_NIS`), it redraws particles from that step's prior, widened by NIS/2 so that
+the innovation becomes typical, and weighs them by the step's ranges.
 
 Measurements (plain numpy closed loop, ``python benchmarks/estimator_regimes.py``, which
 prints the commands' table; "paper" is σ = 0.1 m with q* = [−2, −2, 0] in the body frame,
@@ -78,6 +82,11 @@ per-run posterior Cramér–Rao bound):
   EKF 1.03×, UKF 1.00× (KF 2.60×). In the paper scenario and at 2.8 and 14 m (world) the
   results are those without the bridge (it hands over from the KF directly, or within two
   steps); at 28 m the same RMSE. The default is ``fallback_factor = 1.2``.
+* The NIS fallback (Drake loop, 40 runs, Algorithm 2 rate-limited to 0.1 rad per step,
+  where the excitation is weak): without it the bridged EKF was stopped by the
+  estimator-health monitor (innovations blown up after a slip) in 33 of 100 runs, without
+  the bridge in 15 of 40; with it in 2 of 40 (RMSE 0.77 m against 1.57 m without the
+  bridge; the UKF 1 of 40, 0.80 m). At σ = 0.5 and 1 m in the numpy loop it never fires.
 """
 
 from __future__ import annotations
@@ -88,6 +97,10 @@ from dataclasses import dataclass
 import numpy as np
 
 _I6 = np.eye(6)
+
+#: The NIS beyond which a bridged Gaussian filter is lost: the χ²(2) quantile of 1 − 10⁻⁶
+#: (−2 ln 10⁻⁶), about one false alarm per two thousand 500-step runs.
+LOST_NIS = 2.0 * math.log(1e6)
 
 
 def cross_range_angle(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> np.ndarray:
@@ -241,6 +254,12 @@ class HandoverRule:
             return False
         limit = self.fallback_factor * float(self.angle_tolerance)
         return bool(np.any(cross_range_angle(x, P, q_s) > limit))
+
+    def lost(self, nis: float) -> bool:
+        """With ``particle_bridge``: a Gaussian filter's innovation is beyond any chance under
+        its own covariance (NIS above :data:`LOST_NIS`), as when it slips onto the mirror
+        solution while its covariance stays narrow."""
+        return self.particle_bridge and nis > LOST_NIS
 
     def handover_due(
         self,

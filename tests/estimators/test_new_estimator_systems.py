@@ -27,6 +27,7 @@ from drake_uuv.estimators.raw_range_filter import RawRangeEstimator
 from drake_uuv.estimators.unscented_filter import UnscentedRangeEstimator
 from drake_uuv.models.filters import HandoverPolicy, predict, range_difference_update
 from drake_uuv.models.handover import (
+    LOST_NIS,
     HandoverRule,
     cross_range_angle,
     prior_share_predict,
@@ -417,6 +418,30 @@ def test_a_bridged_ukf_falls_back_to_particles_when_its_gaussian_widens(scale, a
         moved, log_next, _ = drawn_and_predicted(x, P)
         particles = discrete_update(system, context, system.particles_index)
         assert_array_equal(particles, moved.ravel())
+
+
+def test_a_lost_bridged_filter_redraws_from_its_widened_prior():
+    # A prior 1.5 m off the truth with a 0.1 m spread: the ranges contradict it (NIS far
+    # above 2 ln 10⁶), so the particles are drawn from N(x⁻, P⁻ · NIS/2) and weighed by them.
+    system = bridged(ukf)
+    x_prior = X0 + np.array([1.5, -1.0, 0.0, 0.0, 0.0, 0.0])
+    P_prior = 0.01 * np.eye(6)
+    context = fixed_context(system, particle_seed=[0.5], **inputs())
+    context.SetDiscreteState(system.start_state_index, [RANGE_PHASE, 9.0])
+    context.SetDiscreteState(0, x_prior)
+    context.SetDiscreteState(1, P_prior.ravel())
+    z = samples().reshape(2, F).mean(axis=1)
+    x, P, nis = ukf_range_update(x_prior, P_prior, z, Q_S, R)
+    assert nis > LOST_NIS and np.max(cross_range_angle(x, P, Q_S)) < 0.3  # not too wide
+    assert_allclose(discrete_update(system, context, system.start_state_index), [PARTICLE_PHASE, 9])
+    rng = np.random.default_rng(int(0.5 * 2.0**53))
+    drawn = initial_particles(x_prior, P_prior * (nis / 2.0), COUNT, rng)
+    *_, weighed = pf_update(drawn, np.full(COUNT, -math.log(COUNT)), z, Q_S, R)
+    moved, log_next, _ = pf_predict(drawn, weighed, A_W, A, B, W, rng, PARAMS)
+    assert_allclose(discrete_update(system, context, system.particles_index), moved.ravel(),
+                    rtol=1e-12)  # fmt: skip
+    assert_allclose(discrete_update(system, context, system.log_weights_index), log_next,
+                    rtol=1e-12)  # fmt: skip
 
 
 def build_loop(handover: HandoverRule):

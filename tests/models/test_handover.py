@@ -8,6 +8,7 @@ from numpy.testing import assert_allclose
 
 from drake_uuv.models.filters import predict, range_difference_update
 from drake_uuv.models.handover import (
+    LOST_NIS,
     HandoverRule,
     cross_range_angle,
     prior_share_predict,
@@ -15,6 +16,7 @@ from drake_uuv.models.handover import (
     second_order_range_error,
 )
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
+from drake_uuv.models.statistics import chi2_ppf
 
 A, B = double_integrator(0.5)
 Q = process_noise_covariance(np.diag([0.004, 0.001, 0.001]), 0.5)
@@ -195,3 +197,12 @@ def test_handover_is_the_prior_test_and_the_gaussian_test(share, cross):
     )
     assert rule.handover_due(P, 5, **inputs) is both
     assert rule.prior_forgotten(P, 5, inputs["prior_covariance"]) is (share <= 0.1)
+
+
+def test_a_bridged_filter_is_lost_beyond_the_one_in_a_million_nis():
+    # χ²(2) has survival exp(−x/2): the 1 − 10⁻⁶ quantile is 2 ln 10⁶, as chi2_ppf says.
+    assert_allclose(LOST_NIS, chi2_ppf(1.0 - 1e-6, 2), rtol=1e-9)
+    rule = HandoverRule(particle_bridge=True)
+    assert rule.lost(LOST_NIS * 1.001) and not rule.lost(LOST_NIS * 0.999)
+    assert not rule.lost(math.nan)
+    assert not HandoverRule().lost(1e9)  # no bridge: nothing to fall back to
