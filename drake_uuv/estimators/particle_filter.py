@@ -44,8 +44,8 @@ class ParticleRangeEstimator(LinearStartEstimator):
     In the Drake loop (40 runs per regime: σ = 0.1, 0.5, 1 m at the paper's standoff, and
     2.8, 14, 28 m with q* in the world frame) it is at 1.02–1.04× the mean per-run
     Cramér–Rao bound in every regime, mean NEES 6.2–7.0, and no run diverged; the paper's KF
-    is at 1.5–3.8× and the EKF, which cannot leave its linear start at σ ≥ 0.5 m, at up to
-    3.8×.
+    is at 1.5–3.8×, the EKF and UKF (with their particle bridge at σ ≥ 0.5 m) at 1.03–1.08×
+    up to 2.8 m and 1.18–1.37× at 14 and 28 m.
 
     Count: 5000 by default (:class:`~drake_uuv.models.particle_filter.
     ParticleFilterParameters`); see ``benchmarks/bench_particle_filter.py`` for the cost.
