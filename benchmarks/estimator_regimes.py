@@ -84,37 +84,6 @@ def range_difference_measurement(
     return 0.5 * (z[0] ** 2 - z[1] ** 2), float(m), float(gamma)
 
 
-def second_order_range_error(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> np.ndarray:
-    """``tr(P⊥ᵢ)/(2 dᵢ)`` per sonar: the mean range a linearisation at ``x`` drops."""
-    q, half, P_qq = x[:3], 0.5 * q_s, P[:3, :3]
-    out = []
-    for r in (q + half, q - half):
-        d = max(float(np.linalg.norm(r)), 1e-9)
-        u = r / d
-        out.append((np.trace(P_qq) - u @ P_qq @ u) / (2.0 * d))
-    return np.array(out)
-
-
-@dataclass(frozen=True)
-class Rule:
-    """:class:`HandoverRule` with the alternative tested beside it: the second-order range error
-    ``tr(P⊥)/(2d) ≤ c σ/√f`` (``second_order`` = c; None: not tested)."""
-
-    rule: HandoverRule
-    second_order: float | None = None
-
-    @property
-    def linear_start(self) -> bool:
-        return self.rule.linear_start
-
-    def handover_due(self, P, steps, x, q_s, noise_std, prior_covariance) -> bool:
-        if not self.rule.handover_due(P, steps, x=x, q_s=q_s, prior_covariance=prior_covariance):
-            return False
-        if self.second_order is None or steps >= (self.rule.max_linear_steps or math.inf):
-            return True
-        return bool(np.all(second_order_range_error(x, P, q_s) <= self.second_order * noise_std))
-
-
 @dataclass
 class StartedFilter:
     """A linear-KF start handing over to a range update (``ekf``, ``iekf``, ``ukf``, ``pf``)."""
@@ -127,7 +96,7 @@ class StartedFilter:
     W: np.ndarray
     eta: np.ndarray
     f: int
-    rule: Rule
+    rule: HandoverRule
     rng: np.random.Generator
     pf: ParticleFilterParameters = field(default_factory=ParticleFilterParameters)
     pf_init: str = "linear"  # linear | prior
@@ -163,12 +132,19 @@ class StartedFilter:
             self.x, self.P, self.nis = range_difference_update(self.x, self.P, Y, m, G, q_s)
             self.S = prior_share_update(self.S, self.P, q_s, G)
             self.steps += 1
-            if self.rule.handover_due(self.P, self.steps, self.x, q_s, self.noise_std, self.S):
+            if self.rule.handover_due(
+                self.P,
+                self.steps,
+                x=self.x,
+                q_s=q_s,
+                prior_covariance=self.S,
+                noise_std=self.noise_std,
+            ):
                 self.linear = False
                 self.handover_step = k
                 if self.kind == "pf":
                     self._draw(self.x, self.P)
-            elif self.bridge and self.rule.rule.prior_forgotten(self.P, self.steps, self.S):
+            elif self.bridge and self.rule.prior_forgotten(self.P, self.steps, self.S):
                 self.linear = False
                 self.bridging = True
                 self._draw(self.x, self.P)
@@ -177,9 +153,7 @@ class StartedFilter:
             self.x, self.P, self.nis, self.log_weights = pf_update(
                 self.particles, self.log_weights, z, q_s, self.R
             )
-            if self.rule.handover_due(
-                self.P, self.steps, self.x, q_s, self.noise_std, np.zeros((6, 6))
-            ):
+            if self.rule.gaussian_holds(self.x, self.P, q_s, self.noise_std):
                 self.bridging = False
                 self.particles = None
                 self.handover_step = k
@@ -191,11 +165,11 @@ class StartedFilter:
         else:
             x_prior, P_prior = self.x, self.P
             self.x, self.P, self.nis = UPDATES[self.kind](self.x, self.P, z, q_s, self.R)
-            if self.bridge and self.rule.rule.fallback_due(self.x, self.P, q_s):
+            if self.bridge and self.rule.fallback_due(self.x, self.P, q_s):
                 self.bridging = True
                 self.fallbacks += 1
                 self._draw(self.x, self.P)
-            elif self.bridge and self.rule.rule.lost(self.nis):
+            elif self.bridge and self.rule.lost(self.nis):
                 # As the Drake filters: redraw from the widened prior, weighed by these ranges.
                 self.bridging = True
                 self.fallbacks += 1
@@ -391,16 +365,14 @@ def main() -> None:
             rule = (
                 None
                 if kind == "kf"
-                else Rule(
-                    HandoverRule(
-                        angle_tolerance=None if math.isnan(angle) else angle,
-                        prior_share=share,
-                        min_linear_steps=args.min_linear_steps,
-                        max_linear_steps=0 if args.no_linear_start else None,
-                        particle_bridge=args.bridge and kind != "pf",
-                        fallback_factor=args.fallback,
-                    ),
-                    None if math.isnan(tol) else tol,
+                else HandoverRule(
+                    angle_tolerance=None if math.isnan(angle) else angle,
+                    prior_share=share,
+                    min_linear_steps=args.min_linear_steps,
+                    max_linear_steps=0 if args.no_linear_start else None,
+                    second_order_tolerance=None if math.isnan(tol) else tol,
+                    particle_bridge=args.bridge and kind != "pf",
+                    fallback_factor=args.fallback,
                 )
             )
             r = study(s, kind, args.runs, rule, pf, not args.body_frame, bridge=args.bridge)

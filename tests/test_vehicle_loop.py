@@ -14,12 +14,8 @@ from drake_uuv import ClosedLoopSimulation, load_scenario
 from drake_uuv.metrics import errors
 from drake_uuv.models.so3 import log_so3
 from drake_uuv.models.statistics import chi2_ppf, nees_band
-from drake_uuv.models.vehicle_envelope import (
-    feasible_limits,
-    followable_target_scale,
-    plan_max_tilt,
-)
-from drake_uuv.studies.comparison import vehicle_variants
+from drake_uuv.models.vehicle_envelope import followable_target_scale
+from drake_uuv.studies.comparison import scenario_feasible_limits, vehicle_variants
 
 # Every test here runs the hovering UUV's closed loop (seconds each).
 pytestmark = pytest.mark.slow
@@ -54,22 +50,7 @@ def paper_run():
 def test_group_feasible_configuration_is_the_derived_one(paper) -> None:
     """The comparison group's hard-coded limits are feasible_limits' for the default vehicle."""
     scenario = base = load_scenario("paper", [VEHICLE])
-    config, attitude = scenario.plant, scenario.attitude
-    derived = feasible_limits(
-        config.vehicle_model(),
-        config.allocator(),
-        attitude_bandwidth=config.attitude_bandwidth,
-        attitude_damping_ratio=config.attitude_damping_ratio,
-        time_step=scenario.time_step,
-        rho=attitude.rho,
-        max_tilt=plan_max_tilt(
-            np.asarray(scenario.sonar.baseline),
-            attitude.rho,
-            attitude.h_amplitude,
-            attitude.h_frequency,
-            scenario.steps,
-        ),
-    )
+    derived = scenario_feasible_limits(scenario)
     overrides = set(_feasible_overrides())
     assert set(derived.overrides()) <= overrides
     names = [v.name for v in vehicle_variants()]

@@ -323,6 +323,7 @@ class LinearStartEstimator(RelativeStateEstimator):
         phase, done = context.get_discrete_state(self._start_index).get_value()
         applied = filtered.status == VALID and math.isfinite(filtered.nis)
         next_phase = phase
+        source = None  # draw from this step's filtered estimate
         if phase == LINEAR_PHASE:
             S = context.get_discrete_state(self._prior_share_index).get_value().reshape(6, 6)
             if applied:
@@ -345,18 +346,14 @@ class LinearStartEstimator(RelativeStateEstimator):
             elif phase == RANGE_PHASE and self._policy.lost(filtered.nis):
                 # The ranges contradict the Gaussian's prior: redraw from that prior, widened
                 # until this innovation is typical, and weigh the draw by this step's ranges.
-                x_prior = self._prior(context)
+                next_phase = PARTICLE_PHASE
                 P_prior = context.get_discrete_state(self._P_index).get_value().reshape(6, 6)
-                widened = P_prior * (filtered.nis / 2.0)
-                discrete_state.set_value(self._start_index, np.array([PARTICLE_PHASE, done]))
-                self._advance_particles(
-                    context, filtered, discrete_state, draw=True, source=(x_prior, widened)
-                )
-                return
+                source = (self._prior(context), P_prior * (filtered.nis / 2.0))
         # Groups 2 and 3 keep their values outside the linear phase.
         discrete_state.set_value(self._start_index, np.array([next_phase, done]))
         if next_phase == PARTICLE_PHASE:
-            self._advance_particles(context, filtered, discrete_state, draw=phase != next_phase)
+            draw = phase != next_phase
+            self._advance_particles(context, filtered, discrete_state, draw, source)
 
     def _after_linear(
         self, filtered: FilteredEstimate, done: int, q_s: np.ndarray, S: np.ndarray

@@ -122,10 +122,6 @@ class ParticleRangeEstimator(LinearStartEstimator):
         """:class:`HandoverRule` without the angle test: particles need no Gaussian posterior."""
         return HandoverRule(angle_tolerance=None)
 
-    @property
-    def parameters(self) -> ParticleFilterParameters:
-        return self.particle_parameters
-
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> "ParticleRangeEstimator":
         """The filter of ``scenario.estimator`` (a :class:`~drake_uuv.scenario.ParticleFilter`)."""

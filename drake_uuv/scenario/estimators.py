@@ -230,10 +230,6 @@ class ParticleFilter(RawRangeOptions):
             fail(f"{name}.linear_start_max_steps",
                  "must not be 0: the particles are drawn from the linear start", 0)  # fmt: skip
 
-    def parameters(self) -> ParticleFilterParameters:
-        """The particle filter's parameters (:meth:`particle_parameters`)."""
-        return self.particle_parameters()
-
 
 #: The estimator slot. The first member is the default of an untagged section.
 EstimatorConfig = PaperKf | Ekf | Iekf | Ukf | ParticleFilter

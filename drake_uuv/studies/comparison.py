@@ -34,7 +34,12 @@ from typing import Any
 import numpy as np
 
 from drake_uuv.io import write_text_atomic
-from drake_uuv.models.vehicle_envelope import followable_target_scale
+from drake_uuv.models.vehicle_envelope import (
+    FeasibleLimits,
+    feasible_limits,
+    followable_target_scale,
+    plan_max_tilt,
+)
 from drake_uuv.scenario import (
     ALPHA_PROVEN_INTERVAL,
     NOISE_MODELS,
@@ -352,6 +357,35 @@ def followable_target(paper: Scenario) -> tuple[float, str]:
     scale = float(f"{scale:.3g}")
     W = [[float(f"{w:.6g}") for w in row] for row in (scale * W0).tolist()]
     return scale, f"target.acceleration_covariance={W}"
+
+
+def scenario_plan_max_tilt(scenario: Scenario) -> float:
+    """The worst tilt [rad] of Algorithm 2's plan over a scenario's run
+    (:func:`~drake_uuv.models.vehicle_envelope.plan_max_tilt`)."""
+    attitude = scenario.attitude
+    return plan_max_tilt(
+        np.asarray(scenario.sonar.baseline),
+        attitude.rho,
+        attitude.h_amplitude,
+        attitude.h_frequency,
+        scenario.steps,
+    )
+
+
+def scenario_feasible_limits(scenario: Scenario) -> FeasibleLimits:
+    """:func:`~drake_uuv.models.vehicle_envelope.feasible_limits` for a ``!HoveringAuv``
+    scenario with Algorithm 2: its vehicle, its attitude loop and
+    :func:`scenario_plan_max_tilt`."""
+    vehicle = scenario.plant
+    return feasible_limits(
+        vehicle.vehicle_model(),
+        vehicle.allocator(),
+        attitude_bandwidth=vehicle.attitude_bandwidth,
+        attitude_damping_ratio=vehicle.attitude_damping_ratio,
+        time_step=scenario.time_step,
+        rho=scenario.attitude.rho,
+        max_tilt=scenario_plan_max_tilt(scenario),
+    )
 
 
 def attitude_vehicle_variants() -> list[Variant]:

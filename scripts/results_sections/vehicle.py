@@ -29,16 +29,18 @@ from drake_uuv.analysis.vehicle_figures import (  # noqa: E402
 from drake_uuv.models.attitude_plans import trajectory_attitude  # noqa: E402
 from drake_uuv.models.so3 import log_so3  # noqa: E402
 from drake_uuv.models.vehicle_envelope import (  # noqa: E402
-    feasible_limits,
     followable_target_scale,
-    plan_max_tilt,
     target_speed_exceedance,
     target_speed_rms,
 )
 from drake_uuv.scenario import load_scenario  # noqa: E402
 from drake_uuv.simulation import ClosedLoopSimulation  # noqa: E402
 from drake_uuv.studies import compare  # noqa: E402
-from drake_uuv.studies.comparison import vehicle_variants  # noqa: E402
+from drake_uuv.studies.comparison import (  # noqa: E402
+    scenario_feasible_limits,
+    scenario_plan_max_tilt,
+    vehicle_variants,
+)
 from drake_uuv.studies.runner import NORMS  # noqa: E402
 from drake_uuv.studies.study import StudyResult  # noqa: E402
 
@@ -248,24 +250,11 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
     """Runs the ``vehicle`` group and returns the section's Markdown (see the module notes)."""
     (docs / "figures").mkdir(parents=True, exist_ok=True)
     base = load_scenario("paper", ["plant=!HoveringAuv"])
-    vehicle, attitude, target = base.plant, base.attitude, base.target
+    attitude, target = base.attitude, base.target
     q_star = float(np.linalg.norm(base.tracking.desired_relative_position))
-    tilt = plan_max_tilt(
-        np.asarray(base.sonar.baseline),
-        attitude.rho,
-        attitude.h_amplitude,
-        attitude.h_frequency,
-        base.steps,
-    )
-    f = feasible_limits(
-        vehicle.vehicle_model(),
-        vehicle.allocator(),
-        attitude_bandwidth=vehicle.attitude_bandwidth,
-        attitude_damping_ratio=vehicle.attitude_damping_ratio,
-        time_step=base.time_step,
-        rho=attitude.rho,
-        max_tilt=tilt,
-    )
+    # The plan's worst tilt, shown beside the envelope's (which caps it at 90°).
+    tilt = scenario_plan_max_tilt(base)
+    f = scenario_feasible_limits(base)
     start, steps, t = base.steady_state_start, base.steps, base.time_step
     baseline = np.asarray(base.sonar.baseline)
     plan = [
