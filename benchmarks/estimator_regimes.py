@@ -11,6 +11,10 @@ also by the second-order range error against the noise (``--second-order c``). W
 and go back to them when an angle exceeds ``--fallback`` × the tolerance (the rule's
 ``particle_bridge``, as the Drake filters do by default).
 
+``kf-predicted`` is the paper's KF with the noise variance Γ of ``Y`` from its own prediction
+(``E d² = |q̂ ± ½ q_s|² + tr P_qq``) instead of the measured ranges, which give each
+measurement a say in its own weight.
+
 Prints, per estimator and rule: position RMSE over k ≥ 200, the mean per-run posterior
 Cramér–Rao bound and their ratio, mean NEES, runs that diverged (final error > 10 m), the
 median step of the (last) hand-over to the Gaussian filter (−1: some runs never handed over),
@@ -209,7 +213,7 @@ def run(
     pt, vt = s.target_position.astype(float), s.target_velocity.astype(float)
     x_hat, P = s.x0_hat.astype(float), s.P0.astype(float)
     filt = None
-    if kind != "kf":
+    if not kind.startswith("kf"):
         filt = StartedFilter(
             kind, x_hat, P, A, B, s.W, s.eta, f, rule, filter_rng, pf, bridge=bridge
         )
@@ -224,9 +228,13 @@ def run(
         d = range_measurement(x, q_s)
         samples = d[:, None] + eta_sqrt[:, None] * rng.standard_normal((2, f))
         if filt is None:
-            Y, m, G = range_difference_measurement(
-                samples[:, 0], s.eta, squared_ranges=(samples**2).mean(axis=1)
-            )
+            squared = (samples**2).mean(axis=1)
+            if kind == "kf-predicted":  # Γ from the prediction: E z² = |q̂ ± ½q_s|² + tr P_qq + η
+                q, half = x_hat[:3], 0.5 * q_s
+                spread = np.trace(P[:3, :3])
+                squared = np.array([(q + half) @ (q + half), (q - half) @ (q - half)]) + spread
+                squared = squared + s.eta
+            Y, m, G = range_difference_measurement(samples[:, 0], s.eta, squared_ranges=squared)
             x_hat, P, _ = range_difference_update(x_hat, P, Y, m, G, q_s)
         else:
             filt.update(samples, q_s, k)
@@ -297,7 +305,7 @@ def study(s, kind, runs, rule, pf, world_frame, first_seed=0, bridge=False) -> d
         "nees": float(np.mean(np.array(nees)[ok])),
         "diverged": int(np.sum(~(final <= 10.0))),
         "handover": float(np.median(handovers)),
-        "never": int(np.sum(np.array(handovers) < 0)) if kind != "kf" else 0,
+        "never": int(np.sum(np.array(handovers) < 0)) if not kind.startswith("kf") else 0,
         "wall": wall,
         "fallbacks": int(sum(r["fallbacks"] for r in results)),
     }
@@ -361,10 +369,12 @@ def main() -> None:
     for kind in args.estimators:
         angles = [math.nan] if kind == "pf" else args.angle
         combos = [(t, e, a) for t in args.second_order for e in args.prior_share for a in angles]
-        for tol, share, angle in combos if kind != "kf" else [(math.nan, math.nan, math.nan)]:
+        if kind.startswith("kf"):  # no hand-over to vary
+            combos = [(math.nan, math.nan, math.nan)]
+        for tol, share, angle in combos:
             rule = (
                 None
-                if kind == "kf"
+                if kind.startswith("kf")
                 else HandoverRule(
                     angle_tolerance=None if math.isnan(angle) else angle,
                     prior_share=share,
