@@ -1,8 +1,24 @@
-"""Shared fixtures."""
+"""Shared fixtures and constants of the tests.
 
+The constants are the paper's simulation (§IV) unless a name says otherwise; import them with
+``from tests.conftest import T, W, ETA``.
+"""
+
+import numpy as np
 import pytest
 
 from drake_uuv.scenario import Scenario, load_scenario
+
+#: The paper's sampling period t [s].
+T = 0.5
+#: The paper's target acceleration covariance W [m²/s⁴].
+W = np.diag([0.004, 0.001, 0.001])
+#: The paper's range noise variances η1, η2 [m²].
+ETA = np.array([0.01, 0.01])
+#: Unequal range noise variances, so a test catches the two sonars swapped [m²].
+ETA_UNEQUAL = np.array([0.01, 0.02])
+#: A relative state near the paper's q* = [−2, −2, 0]: [q, ϑ] [m, m/s].
+X0 = np.array([-1.8, -2.3, 0.4, 0.05, 0.0, -0.02])
 
 
 @pytest.fixture

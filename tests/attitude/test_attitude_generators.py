@@ -18,8 +18,8 @@ from drake_uuv.models.attitude_plans import zeta
 from drake_uuv.models.so3 import exp_so3, matrix_from_quaternion
 from drake_uuv.scenario import load_scenario
 from drake_uuv.testing import fixed_context
+from tests.conftest import T
 
-T = 0.5
 b = np.array([-1.0, 1.0, 0.0])
 R = RotationMatrix(RollPitchYaw(0.4, -0.3, 1.2)).matrix()
 

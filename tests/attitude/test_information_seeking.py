@@ -13,11 +13,9 @@ from drake_uuv.models.information import InformationSeekingPlanner, rotation_ang
 from drake_uuv.models.so3 import exp_so3
 from drake_uuv.testing import discrete_update, fixed_context
 from drake_uuv.tracking import LqrTrackingController
+from tests.conftest import ETA, T, W
 
-T = 0.5
 B = np.array([-1.0, 1.0, 0.0])
-W = np.diag([0.004, 0.001, 0.001])
-ETA = np.array([0.01, 0.01])
 Q_STAR = np.array([-2.0, -2.0, 0.0])
 R0 = exp_so3(np.array([0.4, -0.3, 1.2]))
 X_HAT = np.array([-2.1, -1.8, 0.3, 0.05, -0.02, 0.01])

@@ -12,9 +12,8 @@ from drake_uuv.models.motion import double_integrator
 from drake_uuv.scenario import load_scenario
 from drake_uuv.simulation import simulate
 from drake_uuv.testing import discrete_update, fixed_context
+from tests.conftest import T, W
 
-T = 0.5
-W = np.diag([0.004, 0.001, 0.001])
 x0 = np.array([0.3, -0.2, 0.1, 0.05, 0.0, -0.02])
 P0 = np.diag([1.0, 2.0, 0.5, 0.3, 0.2, 0.1]) + 0.05
 

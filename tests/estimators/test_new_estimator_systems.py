@@ -49,18 +49,15 @@ from drake_uuv.models.particle_filter import (
 )
 from drake_uuv.models.unscented import SigmaPointParameters, ukf_range_update
 from drake_uuv.testing import discrete_update, fixed_context
+from tests.conftest import ETA_UNEQUAL, X0, T, W
 
-T = 0.5
-W = np.diag([0.004, 0.001, 0.001])
-ETA = np.array([0.01, 0.02])
 F = 3
-X0 = np.array([-1.8, -2.3, 0.4, 0.05, 0.0, -0.02])
 P0 = np.diag([0.3, 0.2, 0.25, 0.1, 0.1, 0.1]) + 0.01
 Q_S = np.array([-0.6, 1.1, 0.5])
 A_W = np.array([1.0, -3.0, 0.5])
 X_TRUE = np.array([-2.0, -2.0, 0.3, 0.0, 0.0, 0.0])
 A, B = double_integrator(T)
-R = np.diag(ETA / F)
+R = np.diag(ETA_UNEQUAL / F)
 RANGE_ONLY = HandoverRule(max_linear_steps=0)
 # The Gaussian filters' rules without and with the particle bridge.
 NO_BRIDGE = HandoverRule(second_order_tolerance=1.0)
@@ -72,7 +69,7 @@ PARAMS = ParticleFilterParameters(count=COUNT)
 def samples(seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
     d = range_measurement(X_TRUE, Q_S)
-    return (d[:, None] + np.sqrt(ETA)[:, None] * rng.standard_normal((2, F))).ravel()
+    return (d[:, None] + np.sqrt(ETA_UNEQUAL)[:, None] * rng.standard_normal((2, F))).ravel()
 
 
 def inputs(**overrides) -> dict[str, np.ndarray]:
@@ -91,17 +88,17 @@ def filtered(system, context):
 
 
 def ukf(handover=RANGE_ONLY, **kwargs):
-    return UnscentedRangeEstimator(T, W, X0, P0, ETA, F, handover=handover, **kwargs)
+    return UnscentedRangeEstimator(T, W, X0, P0, ETA_UNEQUAL, F, handover=handover, **kwargs)
 
 
 def pf(handover=None, parameters=PARAMS, **kwargs):
     return ParticleRangeEstimator(
-        T, W, X0, P0, ETA, F, handover=handover, parameters=parameters, **kwargs
+        T, W, X0, P0, ETA_UNEQUAL, F, handover=handover, parameters=parameters, **kwargs
     )
 
 
 def ekf(handover=None, **kwargs):
-    return RawRangeEstimator(T, W, X0, P0, ETA, F, handover=handover, **kwargs)
+    return RawRangeEstimator(T, W, X0, P0, ETA_UNEQUAL, F, handover=handover, **kwargs)
 
 
 def pf_context(seed_value: float = 0.25, **overrides):
@@ -198,7 +195,7 @@ def test_linear_phase_is_the_papers_kf_and_the_prior_share_follows_it(make):
     context = fixed_context(system, **inputs(), **_seed(system))
     assert system.in_linear_phase(context)
     z = samples().reshape(2, F).mean(axis=1)
-    m, gamma = range_difference_noise("derived", ETA / F, z * z)
+    m, gamma = range_difference_noise("derived", ETA_UNEQUAL / F, z * z)
     Y = 0.5 * (z[0] ** 2 - z[1] ** 2)
     x, P, nis = range_difference_update(X0, P0, Y, m, gamma, Q_S)
     x_hat, P_hat, status, nis_hat = filtered(system, context)
@@ -448,7 +445,7 @@ def build_loop(handover: HandoverRule):
     """The particle filter fed constant ranges and its seed from a seeded uniform source."""
     builder = DiagramBuilder()
     system = builder.AddSystem(
-        ParticleRangeEstimator(T, W, X0, P0, ETA, F, handover=handover, parameters=PARAMS)
+        ParticleRangeEstimator(T, W, X0, P0, ETA_UNEQUAL, F, handover=handover, parameters=PARAMS)
     )
     for name, value in inputs(u1_W=np.zeros(3)).items():
         source = builder.AddSystem(ConstantVectorSource(np.asarray(value, dtype=float)))
@@ -520,7 +517,7 @@ def test_bad_arguments_raise(make, kwargs, message):
     ],
 )
 def test_bad_noise_arguments_raise(args, message):
-    values = {"noise_variances": ETA, "samples_per_step": F, "noise_model": "derived"}
+    values = {"noise_variances": ETA_UNEQUAL, "samples_per_step": F, "noise_model": "derived"}
     values.update(args)
     with pytest.raises(ValueError, match=message):
         UnscentedRangeEstimator(

@@ -27,10 +27,8 @@ from drake_uuv.models.measurement import (
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
 from drake_uuv.scenario import ScenarioError, load_scenario
 from drake_uuv.testing import discrete_update, fixed_context
+from tests.conftest import ETA_UNEQUAL, T, W
 
-T = 0.5
-W = np.diag([0.004, 0.001, 0.001])
-ETA = np.array([0.01, 0.02])
 F = 3
 x0 = np.array([-1.8, -2.3, 0.4, 0.05, 0.0, -0.02])
 P0 = np.diag([0.3, 0.2, 0.25, 0.1, 0.1, 0.1]) + 0.01
@@ -41,13 +39,15 @@ RANGE_PHASE_ONLY = HandoverPolicy(max_linear_steps=0)
 
 
 def make(method: str = "ekf", handover: HandoverPolicy | None = RANGE_PHASE_ONLY, **kwargs):
-    return RawRangeEstimator(T, W, x0, P0, ETA, F, method=method, handover=handover, **kwargs)
+    return RawRangeEstimator(
+        T, W, x0, P0, ETA_UNEQUAL, F, method=method, handover=handover, **kwargs
+    )
 
 
 def samples(seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
     d = range_measurement(X_TRUE, Q_S)
-    return (d[:, None] + np.sqrt(ETA)[:, None] * rng.standard_normal((2, F))).ravel()
+    return (d[:, None] + np.sqrt(ETA_UNEQUAL)[:, None] * rng.standard_normal((2, F))).ravel()
 
 
 def inputs(**overrides: np.ndarray) -> dict[str, np.ndarray]:
@@ -89,7 +89,7 @@ def test_one_range_update_matches_the_numpy_step(method: str) -> None:
     system = make(method)
     context = fixed_context(system, **inputs())
     z = samples().reshape(2, F).mean(axis=1)
-    R = np.diag(ETA / F)
+    R = np.diag(ETA_UNEQUAL / F)
     update = ekf_update if method == "ekf" else iekf_update
     x, P, nis = update(x0, P0, z, Q_S, R)
     x_hat, P_hat, status, nis_hat = filtered(system, context)
@@ -116,14 +116,18 @@ def test_single_sonar_updates_with_its_range_only(missing: int) -> None:
     measured[missing] = np.nan
     context = fixed_context(system, **inputs(range_samples=measured.ravel(), sonar_status=status))
     used = (1 - missing,)
-    x, P, nis = ekf_update(x0, P0, measured.mean(axis=1), Q_S, np.diag(ETA / F), sonars=used)
+    x, P, nis = ekf_update(
+        x0, P0, measured.mean(axis=1), Q_S, np.diag(ETA_UNEQUAL / F), sonars=used
+    )
     x_hat, P_hat, code, nis_hat = filtered(system, context)
     assert np.all(np.isfinite(x_hat))
     assert_allclose(x_hat, x, rtol=1e-13)
     assert_allclose(P_hat, P, rtol=1e-13, atol=1e-16)
     assert (code, nis_hat) == (VALID, pytest.approx(nis, rel=1e-13))
     # One range informs one direction: the update differs from the two-range one.
-    two, _, _ = ekf_update(x0, P0, samples().reshape(2, F).mean(axis=1), Q_S, np.diag(ETA / F))
+    two, _, _ = ekf_update(
+        x0, P0, samples().reshape(2, F).mean(axis=1), Q_S, np.diag(ETA_UNEQUAL / F)
+    )
     assert not np.allclose(x, two)
 
 
@@ -147,7 +151,7 @@ def test_linear_phase_is_the_papers_kf_on_the_sample_means() -> None:
     context = fixed_context(system, **inputs())
     assert system.in_linear_phase(context)
     z = samples().reshape(2, F).mean(axis=1)
-    m, gamma = range_difference_noise("derived", ETA / F, z * z)
+    m, gamma = range_difference_noise("derived", ETA_UNEQUAL / F, z * z)
     Y = 0.5 * (z[0] ** 2 - z[1] ** 2)
     x, P, nis = range_difference_update(x0, P0, Y, m, gamma, Q_S)
     x_hat, P_hat, code, nis_hat = filtered(system, context)
@@ -172,7 +176,7 @@ def test_hand_over_happens_and_the_system_tracks_the_numpy_steps() -> None:
     sample means until the hand-over policy says so, then the EKF), and it hands over once."""
     rng = np.random.default_rng(7)
     system = RawRangeEstimator(
-        T, W, np.zeros(6), np.eye(6), ETA, F, method="ekf", handover=HandoverPolicy()
+        T, W, np.zeros(6), np.eye(6), ETA_UNEQUAL, F, method="ekf", handover=HandoverPolicy()
     )
     context = system.CreateDefaultContext()
     A, B = double_integrator(T)
@@ -187,7 +191,7 @@ def test_hand_over_happens_and_the_system_tracks_the_numpy_steps() -> None:
             [math.sin(angle), math.cos(angle), 0.5 * math.cos(k * math.pi / 6)]
         )
         d = range_measurement(x_true, q_s)
-        measured = d[:, None] + np.sqrt(ETA)[:, None] * rng.standard_normal((2, F))
+        measured = d[:, None] + np.sqrt(ETA_UNEQUAL)[:, None] * rng.standard_normal((2, F))
         a_W = 0.01 * rng.standard_normal(3)
         for name, value in (("range_samples", measured.ravel()), ("b_W", q_s), ("u1_W", a_W),
                             ("sonar_status", np.zeros(2))):  # fmt: skip
@@ -196,12 +200,12 @@ def test_hand_over_happens_and_the_system_tracks_the_numpy_steps() -> None:
         assert phases[-1] == linear
         z = measured.mean(axis=1)
         if linear:
-            m, gamma = range_difference_noise("derived", ETA / F, z * z)
+            m, gamma = range_difference_noise("derived", ETA_UNEQUAL / F, z * z)
             x, P, _ = range_difference_update(x, P, 0.5 * (z[0] ** 2 - z[1] ** 2), m, gamma, q_s)
             linear_steps += 1
             linear = not policy.handover_due(P, linear_steps)
         else:
-            x, P, _ = ekf_update(x, P, z, q_s, np.diag(ETA / F))
+            x, P, _ = ekf_update(x, P, z, q_s, np.diag(ETA_UNEQUAL / F))
         x_hat, P_hat, _, _ = filtered(system, context)
         assert_allclose(x_hat, x, rtol=1e-9, atol=1e-12)
         assert_allclose(P_hat, P, rtol=1e-9, atol=1e-14)

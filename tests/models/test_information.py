@@ -23,11 +23,9 @@ from drake_uuv.models.information import (
 from drake_uuv.models.measurement import range_jacobian
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
 from drake_uuv.models.so3 import exp_so3, log_so3, minimal_rotation
+from tests.conftest import ETA, T, W
 
-T = 0.5
 B = np.array([-1.0, 1.0, 0.0])
-W = np.diag([0.004, 0.001, 0.001])
-ETA = np.array([0.01, 0.01])
 Q_STAR = np.array([-2.0, -2.0, 0.0])
 
 

@@ -24,9 +24,9 @@ from drake_uuv.models.particle_filter import (
     systematic_resample,
     weighted_moments,
 )
+from tests.conftest import W
 
 A, B = double_integrator(0.5)
-W = np.diag([0.004, 0.001, 0.001])
 Q = B @ W @ B.T
 X0 = np.array([-2.0, -2.0, 0.3, 0.1, -0.05, 0.0])
 _M = np.random.default_rng(3).standard_normal((6, 6))

@@ -16,10 +16,8 @@ from drake_uuv.models.pcrlb import (
     pcrlb_per_run_mean,
     pcrlb_recursion,
 )
+from tests.conftest import ETA, T, W
 
-T = 0.5
-W = np.diag([0.004, 0.001, 0.001])
-ETA = np.array([0.01, 0.01])
 N = 200
 
 

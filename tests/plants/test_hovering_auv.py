@@ -21,8 +21,8 @@ from drake_uuv.models.so3 import exp_so3, log_so3
 from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
 from drake_uuv.scenario import ScenarioError
 from drake_uuv.scenario.plants import HoveringAuv
+from tests.conftest import T
 
-T = 0.5
 INPUTS = {"u1_B": 3, "u2_W": 3}
 OUTPUTS = {
     "p_WU": 3, "v_WU": 3, "R_WB": 9, "w_WB": 3, "nu_B": 6, "thrust": 8, "thrust_command": 8,

@@ -12,8 +12,7 @@ from pydrake.systems.primitives import ConstantVectorSource
 from drake_uuv.plants import KinematicUuvPlant, make_plant
 from drake_uuv.scenario import Scenario
 from drake_uuv.testing import discrete_update, fixed_context
-
-T = 0.5
+from tests.conftest import T
 
 
 def plant_at(R0: np.ndarray | None = None) -> KinematicUuvPlant:

@@ -17,8 +17,8 @@ from drake_uuv.plants.low_level_controller import LowLevelController
 from drake_uuv.scenario import ScenarioError
 from drake_uuv.scenario.plants import HoveringAuv
 from drake_uuv.testing import discrete_update, fixed_context
+from tests.conftest import T
 
-T = 0.5
 LATCH, TARGET, RATE, VELOCITY, THRUST, WRENCH, SCALE = range(7)
 OUTPUTS = {
     "thrust_command": 8,

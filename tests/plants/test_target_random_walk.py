@@ -8,8 +8,8 @@ from pydrake.systems.primitives import AddRandomInputs
 
 from drake_uuv.plants import TargetRandomWalk
 from drake_uuv.testing import discrete_update, fixed_context
+from tests.conftest import T
 
-T = 0.5
 W = np.array([[0.004, 0.001, 0.0], [0.001, 0.002, 0.0], [0.0, 0.0, 0.001]])
 
 

@@ -3,10 +3,10 @@
 from pathlib import Path
 
 import pytest
-from study_helpers import SHORT
 
 from drake_uuv.scenario import Scenario, load_scenario
 from drake_uuv.studies import Study
+from tests.studies.study_helpers import SHORT
 
 
 @pytest.fixture

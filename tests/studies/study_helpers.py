@@ -1,4 +1,4 @@
-"""Helpers of the study tests (imported by name: ``from study_helpers import ...``)."""
+"""Helpers of the study tests (``from tests.studies.study_helpers import ...``)."""
 
 from pathlib import Path
 

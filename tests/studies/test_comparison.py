@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from study_helpers import SHORT
 
 from drake_uuv.diagram import make_uuv_diagram
 from drake_uuv.models.vehicle_limits import utilisation_budget
@@ -43,6 +42,7 @@ from drake_uuv.studies.comparison import (
     VEHICLE_SPEED_BUDGET,
     attitude_vehicle_variants,
 )
+from tests.studies.study_helpers import SHORT
 
 
 def _summary(runs: int = 4, **values) -> dict:

@@ -4,12 +4,12 @@ import math
 
 import numpy as np
 import pytest
-from study_helpers import outputs
 
 from drake_uuv.monitor import SimulationFailure
 from drake_uuv.simulation import ClosedLoopSimulation
 from drake_uuv.studies import MonteCarloError, completed_seeds, run_study
 from drake_uuv.studies.execution import automatic_chunk_size, chunks, connect
+from tests.studies.study_helpers import outputs
 
 RUNS = 6
 QUIET = dict(progress=False, figures=False)

@@ -11,7 +11,6 @@ import math
 
 import numpy as np
 import pytest
-from study_helpers import synthetic_chunk
 
 from drake_uuv.studies import MonteCarloError, Study
 from drake_uuv.studies.runner import information_exponent
@@ -26,6 +25,7 @@ from drake_uuv.studies.storage import (
     write_outputs,
     write_part,
 )
+from tests.studies.study_helpers import synthetic_chunk
 
 
 def _prepared(folder, short, runs=3) -> Study:

@@ -24,8 +24,8 @@ from drake_uuv.scenario import Scenario, ScenarioError, load_scenario
 from drake_uuv.simulation import ClosedLoopSimulation
 from drake_uuv.testing import fixed_context
 from drake_uuv.tracking import LqrTrackingController, PaperTrackingController
+from tests.conftest import T
 
-T = 0.5
 b = np.array([-1.0, 1.0, 0.0])
 q_star = np.array([-2.0, -2.0, 0.0])
 R = RotationMatrix(RollPitchYaw(0.1, 0.5, -0.8)).matrix()

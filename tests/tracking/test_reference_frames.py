@@ -17,8 +17,8 @@ from drake_uuv.scenario import ScenarioError, load_scenario
 from drake_uuv.simulation import simulate
 from drake_uuv.testing import fixed_context
 from drake_uuv.tracking import LqrTrackingController, PaperTrackingController
+from tests.conftest import T
 
-T = 0.5
 q_star = np.array([-10.0, -10.0, 0.0])
 
 

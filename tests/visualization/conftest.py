@@ -1,7 +1,8 @@
 """Fixtures of the visualization tests."""
 
 import pytest
-from synthetic_log import synthetic_log
+
+from tests.visualization.synthetic_log import synthetic_log
 
 
 @pytest.fixture(scope="session")

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
-from synthetic_log import BASELINE_B, TIME_STEP, synthetic_log
 
 from drake_uuv.diagram import make_uuv_diagram
 from drake_uuv.scenario import load_scenario
@@ -22,6 +21,7 @@ from drake_uuv.visualization.scene import (
     _covariance_axes,
     world_particles,
 )
+from tests.visualization.synthetic_log import BASELINE_B, TIME_STEP, synthetic_log
 
 
 @pytest.fixture(scope="module")

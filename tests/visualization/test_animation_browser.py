@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _chromium import Chromium, find_chromium
 from PIL import Image
 from pydrake.geometry import Meshcat
-from synthetic_log import BASELINE_B, TIME_STEP, synthetic_log
 
 from drake_uuv.visualization import MeshcatScene, SceneStyle, record_animation
 from drake_uuv.visualization.scene import MESHCAT_DEFAULT_FOV_DEG
+from tests.visualization._chromium import Chromium, find_chromium
+from tests.visualization.synthetic_log import BASELINE_B, TIME_STEP, synthetic_log
 
 CHROMIUM = find_chromium()
 pytestmark = [

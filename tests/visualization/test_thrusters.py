@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from pydrake.geometry import Meshcat
-from synthetic_log import BASELINE_B, TIME_STEP
 
 from drake_uuv.scenario.plants import HoveringAuv
 from drake_uuv.visualization import record_animation
 from drake_uuv.visualization.scene import SCENE_ROOT, ThrusterLayout, thruster_jets
+from tests.visualization.synthetic_log import BASELINE_B, TIME_STEP
 
 
 @pytest.fixture(scope="module")

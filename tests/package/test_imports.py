@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 PACKAGE = "drake_uuv"
-SOURCE = Path(__file__).resolve().parent.parent / PACKAGE
+SOURCE = Path(__file__).resolve().parents[2] / PACKAGE
 ROOT = "__init__"  # the package's own __init__: the public facade
 
 # Top-level modules and packages, lowest layer first.

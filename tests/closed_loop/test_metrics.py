@@ -8,9 +8,7 @@ from drake_uuv.models.measurement import range_measurement
 from drake_uuv.models.pcrlb import kf_riccati_covariance, pcrlb_along_trajectory
 from drake_uuv.scenario import load_scenario
 from drake_uuv.simulation import ClosedLoopSimulation
-
-T = 0.5
-W = np.diag([0.004, 0.001, 0.001])
+from tests.conftest import T, W
 
 
 def test_run_bounds_are_the_pcrlb_and_the_kf_riccati_on_the_true_trajectory() -> None:
