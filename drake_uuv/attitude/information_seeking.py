@@ -108,7 +108,7 @@ class InformationSeekingAttitude(LeafSystem):
         """The planner of ``scenario.attitude`` (an :class:`~drake_uuv.scenario.
         InformationSeeking`), planning for the scenario's estimator and tracking law.
 
-        The measurement it scores is the estimator's (``planning_measurement``: the paper's Y
+        The measurement it scores is the estimator's (``planning_model()``: the paper's Y
         for ``!PaperKf``, the raw ranges for the others), and it mirrors a raw-range filter's
         linear start (``linear_start_position_variance``, unless ``linear_start_max_steps``
         is 0). The turning reference ``R q*`` is q* in the body frame (the paper's): with q*
@@ -116,14 +116,13 @@ class InformationSeekingAttitude(LeafSystem):
         position; it lags the attitude by a step unless the LQR law feeds the plan forward.
         """
         a, e, tracking = scenario.attitude, scenario.estimator, scenario.tracking
-        measurement = e.planning_measurement
+        model = e.planning_model()
+        measurement = model.measurement.value
         body_reference = tracking.reference_frame == "body"
         prediction = a.position_prediction
         if prediction == "auto":
             prediction = "reference" if measurement == "ranges" and body_reference else "hold"
-        linear_start = getattr(e, "linear_start_position_variance", None)
-        if getattr(e, "linear_start_max_steps", None) == 0:
-            linear_start = None
+        linear_start = model.linear_start_position_variance
         planner = InformationSeekingPlanner(
             scenario.time_step,
             np.asarray(scenario.sonar.baseline),

@@ -120,6 +120,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 
@@ -130,7 +131,28 @@ from drake_uuv.models.measurement import (
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
 from drake_uuv.models.so3 import exp_so3
 
-MEASUREMENT_MODELS = ("range_difference", "ranges")
+
+class PlannedMeasurement(StrEnum):
+    """The measurement a planner scores: the paper's ``Y`` or the two raw ranges."""
+
+    RANGE_DIFFERENCE = "range_difference"  # the paper's KF
+    RANGES = "ranges"  # the raw-range filters (after their linear start)
+
+
+@dataclass(frozen=True)
+class EstimatorPlanningModel:
+    """What a planner assumes of the estimator it plans for.
+
+    ``measurement``: what the estimator updates with; ``linear_start_position_variance``
+    [m²]: ``trace P_qq`` below which a raw-range filter is taken to have left its linear
+    start (None: no linear start, or the paper's KF).
+    """
+
+    measurement: PlannedMeasurement = PlannedMeasurement.RANGE_DIFFERENCE
+    linear_start_position_variance: float | None = None
+
+
+MEASUREMENT_MODELS = tuple(m.value for m in PlannedMeasurement)
 CRITERIA = ("d_optimal", "a_optimal", "e_optimal")
 BLOCKS = ("position", "full")
 POSITION_PREDICTIONS = ("hold", "coast", "reference")

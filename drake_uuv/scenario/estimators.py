@@ -6,12 +6,12 @@ of :class:`EstimatorOptions`. The factory that builds the system of each variant
 """
 
 from dataclasses import dataclass, field
-from typing import ClassVar
 
 import numpy as np
 
 from drake_uuv.models.filters import HandoverPolicy
 from drake_uuv.models.handover import HandoverRule
+from drake_uuv.models.information import EstimatorPlanningModel, PlannedMeasurement
 from drake_uuv.models.particle_filter import ParticleFilterParameters
 from drake_uuv.scenario.validation import (
     check_choice,
@@ -33,10 +33,6 @@ def _identity(n: int) -> list[list[float]]:
 @dataclass
 class EstimatorOptions:
     """Fields every estimator has."""
-
-    #: The measurement an attitude planner scores for this estimator (not a field):
-    #: "range_difference" (the paper's Y) or "ranges" (the two raw ranges).
-    planning_measurement: ClassVar[str] = "range_difference"
 
     # Mean m and variance Γ of the noise of Y = ½(d1² − d2²). "derived": the exact moments of
     # the paper's Y, v̄ = d̄1 v1 − d̄2 v2 + ½(v1² − v2²) (mean ½(η1 − η2), variance
@@ -70,6 +66,10 @@ class EstimatorOptions:
         )
         check_choice(f"{name}.vehicle_motion", self.vehicle_motion, ("commanded", "navigation"))
 
+    def planning_model(self) -> EstimatorPlanningModel:
+        """What an attitude planner assumes of this estimator: the paper's ``Y``."""
+        return EstimatorPlanningModel(PlannedMeasurement.RANGE_DIFFERENCE)
+
     def filter_acceleration_covariance(self, W: list[list[float]]) -> np.ndarray:
         """The acceleration covariance of the filter's process noise: ``W + σ² I``."""
         return np.asarray(W, dtype=float) + self.added_acceleration_variance * np.eye(3)
@@ -98,8 +98,6 @@ class RawRangeOptions(EstimatorOptions):
     never; 0: no linear start). The ``particle_*`` fields shape the particle cloud of the
     particle filter, and of a Gaussian filter's particle bridge.
     """
-
-    planning_measurement: ClassVar[str] = "ranges"
 
     handover: str = "rule"
     handover_prior_share: float = 0.1
@@ -149,6 +147,12 @@ class RawRangeOptions(EstimatorOptions):
             particle_bridge=getattr(self, "particle_bridge", False),
             fallback_factor=getattr(self, "particle_fallback_factor", 1.2),
         )
+
+    def planning_model(self) -> EstimatorPlanningModel:
+        """The raw ranges, after a linear start the planner mirrors by its threshold (none when
+        ``linear_start_max_steps`` is 0)."""
+        start = None if self.linear_start_max_steps == 0 else self.linear_start_position_variance
+        return EstimatorPlanningModel(PlannedMeasurement.RANGES, start)
 
     def particle_parameters(self) -> ParticleFilterParameters:
         """The particle cloud's parameters these fields describe."""
