@@ -15,3 +15,11 @@ def fixed_context(system: System, **inputs: np.ndarray) -> Context:
 def discrete_update(system: System, context: Context, group: int = 0) -> np.ndarray:
     """The system's next discrete state (one group) after its unique periodic update."""
     return system.EvalUniquePeriodicDiscreteUpdate(context).get_vector(group).CopyToVector()
+
+
+def after_update(system: System, context: Context) -> Context:
+    """A copy of ``context`` advanced by the system's unique periodic discrete update (the
+    next step's state, read through the system's own accessors)."""
+    after = context.Clone()
+    after.SetDiscreteState(system.EvalUniquePeriodicDiscreteUpdate(context))
+    return after

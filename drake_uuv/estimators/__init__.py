@@ -1,28 +1,42 @@
-"""Estimators of the relative state ``[q, ϑ]`` of the target.
+"""Estimators of the relative state ``[q, ϑ]`` of the target: the estimator slot.
 
-Contract of the slot (system ``estimator``): every estimator is a
-:class:`~drake_uuv.estimators.base.RelativeStateEstimator`. It reads the sonar's outputs it
-needs by name (``Y``, ``m``, ``Gamma``, ``b_W``, ``range_samples``), ``sonar_status`` and
-``u1_W`` (the vehicle's applied world acceleration), and outputs ``x_TU_hat``/``P_TU`` (the
-filtered estimate at step k, direct feedthrough of the measurement only),
-``x_TU_prior``/``P_TU_prior`` (the prediction, state only), ``measurement_status`` and
-``nis``. See :mod:`drake_uuv.signals`.
+Contract of the slot (system ``estimator``): a
+:class:`~drake_uuv.estimators.base.RelativeStateEstimator`, built as ``cls(config,
+setting=EstimatorSetting(...))``. It reads the sonar's ranges (``range_samples``,
+``sonar_status``), the attitude ``R_WB`` (for the world baseline) and the vehicle's own
+motion (``u1_W``, or ``p_WU`` and ``v_WU``), and outputs ``x_TU_hat``/``P_TU`` (the filtered
+estimate at step k, a direct feedthrough of the ranges only), ``x_TU_prior``/``P_TU_prior``
+(the prediction, state only), ``measurement_status`` and ``nis``. See
+:mod:`drake_uuv.estimators.base` for the hooks a variant supplies and :mod:`drake_uuv.signals`
+for the signals.
 """
 
-from drake_uuv.estimators.base import RelativeStateEstimator
-from drake_uuv.estimators.factory import make_estimator
+from drake_uuv.estimators.base import (
+    Estimate,
+    EstimatorSetting,
+    FilteredEstimate,
+    MeasurementUpdate,
+    Ranges,
+    RelativeStateEstimator,
+)
+from drake_uuv.estimators.factory import ESTIMATORS, estimator_setting, make_estimator
 from drake_uuv.estimators.kalman_filter import RangeDifferenceKalmanFilter
-from drake_uuv.estimators.linear_start import LinearStartEstimator
-from drake_uuv.estimators.particle_filter import ParticleRangeEstimator
-from drake_uuv.estimators.raw_range_filter import RawRangeEstimator
-from drake_uuv.estimators.unscented_filter import UnscentedRangeEstimator
+from drake_uuv.estimators.linear_start import LinearStart
+from drake_uuv.estimators.particle_cloud import ParticleCloud
+from drake_uuv.estimators.range_filter import RangeFilter
 
 __all__ = [
-    "LinearStartEstimator",
-    "ParticleRangeEstimator",
+    "ESTIMATORS",
+    "Estimate",
+    "EstimatorSetting",
+    "FilteredEstimate",
+    "LinearStart",
+    "MeasurementUpdate",
+    "ParticleCloud",
     "RangeDifferenceKalmanFilter",
-    "RawRangeEstimator",
+    "RangeFilter",
+    "Ranges",
     "RelativeStateEstimator",
-    "UnscentedRangeEstimator",
+    "estimator_setting",
     "make_estimator",
 ]

@@ -1,25 +1,38 @@
 """The estimator slot's factory: the system of each variant of ``scenario.estimator``."""
 
-from collections.abc import Callable
+import numpy as np
 
-from drake_uuv.estimators.base import RelativeStateEstimator
+from drake_uuv.estimators.base import EstimatorSetting, RelativeStateEstimator
 from drake_uuv.estimators.kalman_filter import RangeDifferenceKalmanFilter
-from drake_uuv.estimators.particle_filter import ParticleRangeEstimator
-from drake_uuv.estimators.raw_range_filter import RawRangeEstimator
-from drake_uuv.estimators.unscented_filter import UnscentedRangeEstimator
-from drake_uuv.primitives.variant_table import build_variant
+from drake_uuv.estimators.range_filter import RangeFilter
 from drake_uuv.scenario import Ekf, Iekf, PaperKf, ParticleFilter, Scenario, Ukf
 
-#: Variant dataclass → the constructor of its system from a scenario.
-ESTIMATORS: dict[type, Callable[[Scenario], RelativeStateEstimator]] = {
-    PaperKf: RangeDifferenceKalmanFilter.from_scenario,
-    Ekf: RawRangeEstimator.from_scenario,
-    Iekf: RawRangeEstimator.from_scenario,
-    Ukf: UnscentedRangeEstimator.from_scenario,
-    ParticleFilter: ParticleRangeEstimator.from_scenario,
+#: Variant dataclass → the class of its system, built as ``cls(config, setting=...)``.
+ESTIMATORS: dict[type, type[RelativeStateEstimator]] = {
+    PaperKf: RangeDifferenceKalmanFilter,
+    Ekf: RangeFilter,
+    Iekf: RangeFilter,
+    Ukf: RangeFilter,
+    ParticleFilter: RangeFilter,
 }
+
+
+def estimator_setting(scenario: Scenario) -> EstimatorSetting:
+    """What every estimator gets from the rest of ``scenario``: the time step, the target's
+    acceleration covariance, the sonars' noise, samples and baseline."""
+    return EstimatorSetting(
+        time_step=scenario.time_step,
+        acceleration_covariance=np.asarray(scenario.target.acceleration_covariance),
+        noise_variances=np.asarray(scenario.sonar.noise_variances),
+        samples_per_step=scenario.sonar.samples_per_step,
+        baseline_B=np.asarray(scenario.sonar.baseline),
+    )
 
 
 def make_estimator(scenario: Scenario) -> RelativeStateEstimator:
     """The estimator of ``scenario.estimator``'s variant."""
-    return build_variant(ESTIMATORS, scenario, "estimator")
+    config = scenario.estimator
+    system = ESTIMATORS.get(type(config))
+    if system is None:
+        raise TypeError(f"estimator: no system for !{type(config).__name__} in the slot's factory")
+    return system(config, setting=estimator_setting(scenario))

@@ -1,33 +1,36 @@
 """The paper's linear Kalman filter on the squared-range difference, eq. (9)."""
 
-from typing import Self
-
-import numpy as np
 from pydrake.systems.framework import Context
 
-from drake_uuv.estimators.base import MeasurementUpdate, RelativeStateEstimator
+from drake_uuv.estimators.base import (
+    Estimate,
+    EstimatorSetting,
+    MeasurementUpdate,
+    Ranges,
+    RelativeStateEstimator,
+)
 from drake_uuv.models.filters import range_difference_update
-from drake_uuv.models.measurement import VALID
-from drake_uuv.scenario import Scenario
+from drake_uuv.models.measurement import paper_measurement
+from drake_uuv.scenario.estimators import PaperKf
 
 
 class RangeDifferenceKalmanFilter(RelativeStateEstimator):
     """The paper's KF (eq. 9) on ``Y = ½(d1² − d2²)``, with the covariance in Joseph form.
 
-    Timing, prediction, gating and the common ports are those of
+    Timing, prediction, gating and the ports are those of
     :class:`~drake_uuv.estimators.base.RelativeStateEstimator`; this class adds the scalar
-    update :func:`~drake_uuv.models.filters.range_difference_update`, used when both sonars
-    returned.
+    update :func:`~drake_uuv.models.filters.range_difference_update` with ``C = [q_sᵀ, 0]``,
+    used when both sonars returned. ``Y``, its noise mean ``m`` and variance ``Γ`` are the
+    sonar's own (:func:`~drake_uuv.models.measurement.paper_measurement`: the first sample of
+    each sonar, ``Γ`` from all f samples, with ``config.noise_model``).
 
     .. pydrake_system::
 
         name: RangeDifferenceKalmanFilter
         input_ports:
-        - Y
-        - m
-        - Gamma
-        - b_W
+        - range_samples
         - sonar_status
+        - R_WB
         - u1_W
         output_ports:
         - x_TU_hat
@@ -37,57 +40,20 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
         - measurement_status
         - nis
 
-    - ``Y``, ``m``, ``Gamma`` (1 each): measurement, noise mean, noise variance.
-    - ``b_W`` (3): world sonar baseline ``q_s``, ``C = [q_sᵀ, 0]``.
+    The ports are the base class's (with ``vehicle_motion: navigation``, ``p_WU`` and
+    ``v_WU`` in place of ``u1_W``).
     """
 
-    def __init__(
-        self,
-        time_step: float,
-        acceleration_covariance: np.ndarray,
-        initial_estimate: np.ndarray,
-        initial_covariance: np.ndarray,
-        gate_probability: float | None = None,
-        vehicle_motion: str = "commanded",
-    ) -> None:
-        super().__init__(
-            time_step,
-            acceleration_covariance,
-            initial_estimate,
-            initial_covariance,
-            gate_probability,
-            vehicle_motion,
-        )
-        self._Y_port = self.DeclareVectorInputPort("Y", 1)
-        self._m_port = self.DeclareVectorInputPort("m", 1)
-        self._Gamma_port = self.DeclareVectorInputPort("Gamma", 1)
-        self._b_W_port = self.DeclareVectorInputPort("b_W", 3)
-        self._declare_common_ports([self._Y_port, self._m_port, self._Gamma_port, self._b_W_port])
-
-    @classmethod
-    def from_scenario(cls, scenario: Scenario) -> Self:
-        """The filter of ``scenario.estimator`` (a :class:`~drake_uuv.scenario.PaperKf`)."""
-        e = scenario.estimator
-        return cls(
-            scenario.time_step,
-            e.filter_acceleration_covariance(scenario.target.acceleration_covariance),
-            np.asarray(e.initial_estimate),
-            np.asarray(e.initial_covariance),
-            e.gate_probability,
-            e.vehicle_motion,
-        )
+    def __init__(self, config: PaperKf, *, setting: EstimatorSetting) -> None:
+        super().__init__(config, setting=setting)
+        self._noise_model = config.noise_model
+        self._eta = setting.noise_variances
 
     def measurement_update(
-        self, context: Context, x_prior: np.ndarray, P_prior: np.ndarray, status: np.ndarray
+        self, context: Context, prior: Estimate, ranges: Ranges
     ) -> MeasurementUpdate | None:
-        if status[0] != VALID or status[1] != VALID:
+        if not ranges.valid.all():
             return None  # Y needs both ranges.
-        x, P, nis = range_difference_update(
-            x_prior,
-            P_prior,
-            self._Y_port.Eval(context)[0],
-            self._m_port.Eval(context)[0],
-            self._Gamma_port.Eval(context)[0],
-            self._b_W_port.Eval(context),
-        )
+        Y, m, gamma = paper_measurement(ranges.samples, self._eta, self._noise_model)
+        x, P, nis = range_difference_update(prior.x, prior.P, Y, m, gamma, ranges.q_s)
         return MeasurementUpdate(x, P, nis, 1)

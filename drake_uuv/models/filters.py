@@ -10,9 +10,6 @@ One implementation shared by every estimator LeafSystem:
   the one that returned, Joseph form.
 * :func:`iekf_update` — iterated EKF: Gauss–Newton on the MAP cost with a backtracking
   step limit, Joseph form at the final iterate.
-* :class:`HandoverPolicy` — the first raw-range filter's absolute hand-over threshold from
-  its linear-KF start (the current rule is :class:`drake_uuv.models.handover.HandoverRule`;
-  the start itself is :class:`drake_uuv.estimators.linear_start.LinearStartEstimator`).
 
 Every update returns ``(x, P, nis)`` where ``nis = νᵀ S⁻¹ ν`` is the normalised innovation
 squared of the *prior* innovation (χ² with 1 degree of freedom for the linear update, 2 for
@@ -30,16 +27,14 @@ sonars). The range difference ``Y`` is *exactly* linear in ``q``, so the paper's
 from any prior without a linearisation point and its covariance is exact (for a linear
 filter with the right second moments the Riccati covariance is the true MSE, Gaussian or
 not). The raw-range filter therefore runs linear-KF updates (built from the same sample
-means it would use itself) until ``trace(P_qq)`` falls below a threshold or a step limit is
-reached, then continues as an (I)EKF from that estimate and covariance. The hand-over is
-one-way. A multi-hypothesis or batch start would cost more and buy nothing here: the
-linear KF needs no tuning beyond the threshold, and its own covariance says when it is done.
+means it would use itself) until its hand-over policy (:mod:`drake_uuv.models.handover`)
+says a Gaussian on the ranges holds, then continues as an (I)EKF from that estimate and
+covariance.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -48,8 +43,24 @@ from drake_uuv.models.measurement import (
     range_measurement,
 )
 
-#: A measurement update: ``(x_pred, P_pred, z, q_s, R, sonars=...) -> (x, P, nis)``.
-RangeUpdate = Callable[..., tuple[np.ndarray, np.ndarray, float]]
+
+class RangeUpdate(Protocol):
+    """A Gaussian update on the raw ranges: :func:`ekf_update`, :func:`iekf_update`, or the
+    unscented :class:`~drake_uuv.models.unscented.UnscentedRangeUpdate`.
+
+    ``(x_pred, P_pred, z, q_s, R, sonars=...) -> (x, P, nis)``: ``z`` the per-sonar sample
+    means, ``R`` their covariance, ``sonars`` the indices of the sonars that returned.
+    """
+
+    def __call__(
+        self,
+        x_pred: np.ndarray,
+        P_pred: np.ndarray,
+        z: np.ndarray,
+        q_s: np.ndarray,
+        R: np.ndarray,
+        sonars: tuple[int, ...] | np.ndarray = (0, 1),
+    ) -> tuple[np.ndarray, np.ndarray, float]: ...
 
 
 def _symmetrise(P: np.ndarray) -> np.ndarray:
@@ -206,52 +217,3 @@ def iekf_update(
     S = H @ P_pred @ H.T + R
     K = np.linalg.solve(S, H @ P_pred).T
     return x, _joseph(P_pred, K, H, R), nis
-
-
-@dataclass(frozen=True)
-class HandoverPolicy:
-    """When a raw-range filter leaves its linear-KF start and becomes an (I)EKF.
-
-    The hand-over happens after the update at step ``k`` when ``trace(P_qq) ≤
-    position_variance_threshold`` and at least ``min_linear_steps`` updates were linear, or,
-    if ``max_linear_steps`` is set, unconditionally after that many linear updates.
-    ``max_linear_steps = 0`` disables the linear start.
-
-    By default (``None``) there is no forced hand-over: the filter leaves the linear start
-    only once its covariance says a linearisation is safe. Where the linear KF cannot
-    converge a forced hand-over does harm: with a fixed attitude (unobservable, ``trace(P_qq)``
-    in the thousands of m² by step 100) a hand-over after 100 steps made every EKF and IEKF
-    run of the Drake loop blow up within 20 steps (5 of 5 seeds, the run monitor stops them:
-    mean NIS in the hundreds), while staying linear the filter behaves as the paper's KF.
-
-    The default 0.5 m² (σ ≈ 0.4 m per axis, a second-order range error of about
-    ``σ²/(2d) ≈ 0.03 m`` at ``d ≈ 2.8 m``, below the 0.1 m range noise) was measured on the
-    paper scenario (``_reference.py``, 60 runs of 300 steps per prior; priors: the paper's
-    ``x̂ = 0, P = I``; ``x̂ ~ N(x, σ²I), P = σ²I`` for σ = 1, 3, 10; ``q̂ = −q, P = 9I``):
-    no divergence for the EKF or the IEKF, hand-over at step 29–30 from the paper's prior.
-    On the priors other than σ = 10, 0.3 m² and 1 m² also never diverged (hand-over at
-    35–83 and 22–28 steps); 2 m² diverged in 23 of 60 runs from σ = 1 (the first linear
-    update already meets it), 4 m² in 19 of 60 from the paper's prior. Below about 0.3 m²
-    the linear KF (steady ``trace(P_qq)`` ≈ 0.27–0.37 m²) may never reach it: set
-    ``max_linear_steps`` then. Without the linear start the EKF
-    diverges from the paper's prior in 14 of 30 runs; the IEKF's line search survives the
-    paper's prior but not σ = 3 (31 of 60 diverged) nor the mirrored prior (60 of 60).
-    """
-
-    position_variance_threshold: float = 0.5
-    min_linear_steps: int = 1
-    max_linear_steps: int | None = None
-
-    @property
-    def linear_start(self) -> bool:
-        """Whether a filter begins with linear-KF updates (``max_linear_steps != 0``)."""
-        return self.max_linear_steps is None or self.max_linear_steps > 0
-
-    def handover_due(self, P: np.ndarray, linear_steps_done: int) -> bool:
-        """True if, after ``linear_steps_done`` linear updates ending with covariance ``P``,
-        the next update should be a range update."""
-        if self.max_linear_steps is not None and linear_steps_done >= self.max_linear_steps:
-            return True
-        if linear_steps_done < self.min_linear_steps:
-            return False
-        return float(np.trace(P[:3, :3])) <= self.position_variance_threshold

@@ -2,7 +2,7 @@
 
 A raw-range filter (EKF, UKF, particle filter) starts as the paper's linear KF on
 ``Y = ½(d1² − d2²)``, which is exactly linear in ``q`` and so converges from any prior, and
-hands over, one way, to the raw ranges. The old rule (``HandoverPolicy``: ``trace(P_qq) ≤
+hands over to the raw ranges. The first rule (:class:`ThresholdHandover`: ``trace(P_qq) ≤
 0.5 m²``) is absolute: with σ = 0.5 or 1 m of range noise, or 14 m of standoff, the KF never
 reaches it and the "EKF" stays the KF (2.7–4.8× the Cramér–Rao bound). :class:`HandoverRule`
 replaces it with two tests on the KF's own estimate and covariance after each linear update:
@@ -45,59 +45,123 @@ poor): when an innovation is beyond any chance under its own covariance (NIS abo
 :data:`LOST_NIS`), it redraws particles from that step's prior, widened by NIS/2 so that
 the innovation becomes typical, and weighs them by the step's ranges.
 
-Measurements (plain numpy closed loop, ``python benchmarks/estimator_regimes.py``, which
-prints the commands' table; "paper" is σ = 0.1 m with q* = [−2, −2, 0] in the body frame,
-"world" holds q* in the world frame; ratios are position RMSE over k ≥ 200 against the mean
-per-run posterior Cramér–Rao bound):
-
-* Test 1 (40 paper runs, test 2 at 0.25): without it (``prior_share = inf``) the EKF hands
-  over at step 15 and 1 of 40 runs diverges, as does the particle filter drawn at step 0;
-  with 0.3, 0.1, 0.03 the hand-over comes at step 16, 22, 28 and no EKF, UKF or particle
-  filter run diverges (1.00–1.01×). The default is 0.1.
-* The brief's first idea, the second-order error against the noise,
-  ``tr(P⊥)/(2d) ≤ c σ/√f`` (with test 1, without test 2), fails where the noise is large: the
-  KF's covariance there (∝ σ² d²) meets a threshold ∝ σ d, and the EKF's *own* steady state
-  then slips onto the mirror solution. World, 20 runs: for c = 0.5, 0.75, 1, 1.5 the EKF
-  diverged in 3, 6, 6, 6 runs at σ = 0.5 m and 8, 12, 17, 19 at σ = 1 m.
-* Test 2 (40 runs per cell, test 1 at 0.1), EKF and UKF alike: with 0.2, 0.25 or 0.3 no run
-  diverges in any cell; hand-over at step 22–23 in the paper scenario (1.01×, 1.00×), at
-  22 at 2.8 m world (1.06×, 1.05×), at 24 at 14 m (1.13×, 1.17×) and 28 m (1.21×, 1.32×);
-  never at σ = 1 m (the KF's 3.51×, whose own 3 of 40 runs end > 10 m off). At σ = 0.5 m
-  (paper frame) 2, 14, 38 of 40 runs hand over (2.57×, 2.34×, 1.47× against the KF's
-  2.60×); in the world frame none does up to 0.3, while 0.35 hands over in 15 of 40 and 3
-  EKF runs (1 UKF run) diverge, 0.4 in 33 with 6 diverged. The default is 0.25.
-* The EKF drops the second-order term, so for it ``second_order_tolerance`` adds the
-  brief's test as well: in the Drake loop (40 runs, 28 m, q* world) the EKF with tests 1 and
-  2 alone lost 1 run (seed 35: its NIS blew up at step 51, after the hand-over); with
-  ``second_order_tolerance = 1`` none (1.26× the bound; still inconsistent, NEES 13.9: the
-  dropped term stays comparable to the noise in its steady state). The UKF keeps the term
-  and the particle filter has none to drop: they leave it out.
-* The bridge (40 runs per cell, ``--bridge``; EKF with the second-order test, UKF without):
-  at σ = 1 m (paper frame) a one-way bridge (no fallback) lets every run take its Gaussian
-  back (median step 68), after which the UKF holds (1.05×, NEES 6.6) but the EKF does not
-  (7.5×, NEES 347, 1 run lost): its steady state widens past the angle it took over at
-  (0.15 gives the same; 0.1 never takes it back, 1.00×). With the fallback at 1.2 × 0.25
-  rad the EKF is at 1.01× (NEES 6.1) and the UKF at 1.00× (5.9), none lost, with 16
-  returns to particles per run (1.5: 1.06× and 1.01×, EKF NEES 7.0, 9 per run). σ = 0.5 m:
-  EKF 1.03×, UKF 1.00× (KF 2.60×). In the paper scenario and at 2.8 and 14 m (world) the
-  results are those without the bridge (it hands over from the KF directly, or within two
-  steps); at 28 m the same RMSE. The default is ``fallback_factor = 1.2``.
-* The NIS fallback (Drake loop, 100 runs of the attitude study's EKF, Algorithm 2
-  rate-limited to 0.1 rad per step, where the excitation is weak): the estimator-health
-  monitor stopped 11 runs without the bridge (RMSE 1.59 m, the EKF mostly still the KF), 33
-  with the bridge but without this fallback (innovations blown up after a slip; 0.71 m), 4
-  with both (0.72 m); under the information-seeking planner at that budget 5, 11 and 1. At
-  σ = 0.5 and 1 m in the numpy loop it never fires.
+The defaults of every threshold below were chosen by measurement, in the plain-numpy loop
+of ``benchmarks/estimator_regimes.py`` and in the Drake loop; ``docs/handover.md`` lists
+those measurements and the commands that repeat them.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import IntEnum
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
 _I6 = np.eye(6)
+
+
+class Phase(IntEnum):
+    """Which update a raw-range filter makes at a step (the value is stored as discrete state)."""
+
+    RANGE = 0  # its Gaussian update on the raw ranges (EKF, IEKF, UKF)
+    LINEAR = 1  # the paper's KF on Y = ½(z1² − z2²): the start
+    PARTICLE = 2  # the posterior carried on particles
+
+
+@dataclass(frozen=True)
+class PhaseEvidence:
+    """What a hand-over policy decides on, after an update the filter applied.
+
+    ``x``, ``P``: the step's filtered estimate; ``nis`` its update's NIS; ``linear_updates``:
+    linear updates applied so far (this one included); ``prior_share``: the prior's share
+    ``S`` of the linear KF's covariance (:func:`prior_share_update`); ``q_s``: the world
+    baseline; ``noise_std``: the per-sonar ``√(η/f)`` of the range means; ``gaussian``: the
+    filter has a Gaussian range update; ``particles``: it can carry particles.
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    nis: float
+    linear_updates: int
+    prior_share: np.ndarray
+    q_s: np.ndarray
+    noise_std: np.ndarray
+    gaussian: bool
+    particles: bool
+
+
+class Transition(NamedTuple):
+    """A policy's decision: the next step's phase, and for a new particle phase where the
+    particles come from: the step's filtered estimate (default), or the step's prior widened
+    by NIS/2 and weighed by the step's ranges (``redraw_from_prior``, for a filter that lost
+    the target)."""
+
+    phase: Phase
+    redraw_from_prior: bool = False
+
+
+class HandoverPolicy(Protocol):
+    """When a raw-range filter changes phase: the one seam of the hand-over.
+
+    ``linear_start``: whether the filter starts in :attr:`Phase.LINEAR`; ``particle_bridge``:
+    whether a Gaussian filter carries particles where its Gaussian fails; :meth:`next_phase`
+    is asked after every applied update.
+    """
+
+    @property
+    def linear_start(self) -> bool: ...
+
+    @property
+    def particle_bridge(self) -> bool: ...
+
+    def next_phase(self, phase: Phase, evidence: PhaseEvidence) -> Transition: ...
+
+
+@dataclass(frozen=True)
+class ThresholdHandover:
+    """The first raw-range EKF's hand-over: absolute, one way, without particles.
+
+    After the update at which ``trace(P_qq) ≤ position_variance_threshold`` (and at least
+    ``min_linear_steps`` linear updates), or unconditionally after ``max_linear_steps`` linear
+    updates if that is set, the filter leaves the linear start for its Gaussian update (or
+    its particles, for a filter without one) and never returns. ``max_linear_steps = 0``
+    disables the linear start. By default there is no forced hand-over: where the linear KF
+    cannot converge (a fixed attitude leaves two directions unobservable) a forced hand-over
+    linearises a covariance of thousands of m² and the loop blows up.
+
+    The threshold is absolute: with 0.5 or 1 m of range noise, or at 14 m, the KF never
+    reaches it and the filter stays the paper's KF; :class:`HandoverRule` scales instead.
+    """
+
+    position_variance_threshold: float = 0.5
+    min_linear_steps: int = 1
+    max_linear_steps: int | None = None
+
+    @property
+    def linear_start(self) -> bool:
+        """Whether a filter begins with linear-KF updates (``max_linear_steps != 0``)."""
+        return self.max_linear_steps is None or self.max_linear_steps > 0
+
+    @property
+    def particle_bridge(self) -> bool:
+        return False
+
+    def handover_due(self, P: np.ndarray, linear_steps_done: int) -> bool:
+        """True if, after ``linear_steps_done`` linear updates ending with covariance ``P``,
+        the next update should leave the linear start."""
+        if self.max_linear_steps is not None and linear_steps_done >= self.max_linear_steps:
+            return True
+        if linear_steps_done < self.min_linear_steps:
+            return False
+        return float(np.trace(P[:3, :3])) <= self.position_variance_threshold
+
+    def next_phase(self, phase: Phase, evidence: PhaseEvidence) -> Transition:
+        if phase is not Phase.LINEAR or not self.handover_due(evidence.P, evidence.linear_updates):
+            return Transition(phase)
+        return Transition(Phase.RANGE if evidence.gaussian else Phase.PARTICLE)
+
 
 #: The NIS beyond which a bridged Gaussian filter is lost: the χ²(2) quantile of 1 − 10⁻⁶
 #: (−2 ln 10⁻⁶), about one false alarm per two thousand 500-step runs.
@@ -279,3 +343,29 @@ class HandoverRule:
         if not self.prior_forgotten(P, linear_steps_done, prior_covariance):
             return False
         return self.gaussian_holds(x, P, q_s, noise_std)
+
+    def next_phase(self, phase: Phase, evidence: PhaseEvidence) -> Transition:
+        """Linear: to the Gaussian update when :meth:`handover_due`, else to particles once
+        the prior is forgotten (a filter without a Gaussian update, or with the bridge).
+        Particles: back to the Gaussian update when :meth:`gaussian_holds` on them. Gaussian
+        (with the bridge): to particles when :meth:`fallback_due`, or redrawn from the prior
+        when :meth:`lost`."""
+        e = evidence
+        if phase is Phase.LINEAR:
+            if e.gaussian and self.handover_due(
+                e.P, e.linear_updates, x=e.x, q_s=e.q_s, prior_covariance=e.prior_share,
+                noise_std=e.noise_std,
+            ):  # fmt: skip
+                return Transition(Phase.RANGE)
+            if e.particles and self.prior_forgotten(e.P, e.linear_updates, e.prior_share):
+                return Transition(Phase.PARTICLE)
+            return Transition(Phase.LINEAR)
+        if phase is Phase.PARTICLE:
+            if e.gaussian and self.gaussian_holds(e.x, e.P, e.q_s, e.noise_std):
+                return Transition(Phase.RANGE)
+            return Transition(Phase.PARTICLE)
+        if self.fallback_due(e.x, e.P, e.q_s):
+            return Transition(Phase.PARTICLE)
+        if self.lost(e.nis):
+            return Transition(Phase.PARTICLE, redraw_from_prior=True)
+        return Transition(Phase.RANGE)

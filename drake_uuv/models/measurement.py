@@ -101,3 +101,34 @@ def range_difference_noise(
     raise ValueError(
         f"estimator.noise_model: must be derived or paper_printed, got {noise_model!r}"
     )
+
+
+def _clip_at_zero(x: float) -> float:
+    """``max(x, 0)`` for a float, NaN staying NaN."""
+    return x if x > 0.0 or x != x else 0.0
+
+
+def paper_measurement(
+    samples: np.ndarray, noise_variances: np.ndarray, noise_model: str = "derived"
+) -> tuple[float, float, float]:
+    """The paper's ``(Y, m, Γ)`` from one step's range samples (2×f, sonar 1's row first).
+
+    ``Y = ½(d1² − d2²)`` of each sonar's *first* sample; ``m`` and ``Γ`` from
+    :func:`range_difference_noise` with ``mean_f(dᵢ²)`` over all ``f`` samples. NaN samples (no
+    return) give NaN. With one sample and the derived model the arithmetic runs on Python
+    floats (the same operations, without a dozen numpy calls).
+    """
+    eta = np.asarray(noise_variances, dtype=float)
+    if samples.shape[1] == 1 and noise_model == "derived":
+        d1, d2 = samples.ravel().tolist()
+        eta1, eta2 = float(eta[0]), float(eta[1])
+        gamma = (
+            eta1 * _clip_at_zero(d1 * d1 - eta1)
+            + eta2 * _clip_at_zero(d2 * d2 - eta2)
+            + float(0.5 * (eta[0] ** 2 + eta[1] ** 2))
+        )
+        return 0.5 * (d1 * d1 - d2 * d2), float(0.5 * (eta[0] - eta[1])), gamma
+    d1, d2 = samples[:, 0]
+    mean_squares = (samples * samples).sum(axis=1) / samples.shape[1]
+    m, gamma = range_difference_noise(noise_model, eta, mean_squares)
+    return 0.5 * (d1 * d1 - d2 * d2), m, gamma

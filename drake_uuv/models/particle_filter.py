@@ -39,7 +39,7 @@ the two-range circle), so the Drake estimator draws the particles from the paper
 KF's Gaussian once a hand-over rule says the KF has converged
 (:mod:`drake_uuv.models.handover`): the KF on ``Y = ½(d1² − d2²)`` is exact in its second
 moments whatever its prior. The measurements behind this choice are in the estimator's
-docstring (:mod:`drake_uuv.estimators.particle_filter`).
+page ``docs/handover.md``.
 """
 
 from __future__ import annotations

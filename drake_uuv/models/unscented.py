@@ -37,7 +37,7 @@ matrix ``H = P_xzᵀ P⁻⁻¹`` and the effective noise ``R_eff = S − H P⁻ 
 semi-definite under rounding as the EKF's Joseph form is. On a linear ``h(x) = H x`` the
 update is the Kalman filter's, to rounding (the transform is exact for linear maps).
 
-Every update returns ``(x, P, nis)`` like :func:`drake_uuv.estimators.filters_math.ekf_update`,
+Every update returns ``(x, P, nis)`` like :func:`drake_uuv.models.filters.ekf_update`,
 ``nis = νᵀ S⁻¹ ν`` of the innovation against the unscented predicted measurement.
 """
 
@@ -173,3 +173,27 @@ def ukf_range_update(
     return unscented_update(
         x_pred, P_pred, z, R, lambda X: range_model_points(X, q_s, rows), parameters
     )
+
+
+@dataclass(frozen=True)
+class UnscentedRangeUpdate:
+    """:func:`ukf_range_update` with its sigma-point parameters: a
+    :class:`~drake_uuv.models.filters.RangeUpdate`."""
+
+    parameters: SigmaPointParameters = DEFAULT_PARAMETERS
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.parameters, SigmaPointParameters):
+            raise ValueError(f"parameters: must be SigmaPointParameters, got {self.parameters!r}")
+        self.parameters.spread(6)  # Fail early on a κ with n + κ ≤ 0.
+
+    def __call__(
+        self,
+        x_pred: np.ndarray,
+        P_pred: np.ndarray,
+        z: np.ndarray,
+        q_s: np.ndarray,
+        R: np.ndarray,
+        sonars: tuple[int, ...] | np.ndarray = (0, 1),
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        return ukf_range_update(x_pred, P_pred, z, q_s, R, sonars, self.parameters)

@@ -6,13 +6,15 @@ of :class:`EstimatorOptions`. The factory that builds the system of each variant
 """
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from drake_uuv.models.filters import HandoverPolicy
-from drake_uuv.models.handover import HandoverRule
+from drake_uuv.models.filters import RangeUpdate, ekf_update, iekf_update
+from drake_uuv.models.handover import HandoverPolicy, HandoverRule, ThresholdHandover
 from drake_uuv.models.information import EstimatorPlanningModel, PlannedMeasurement
 from drake_uuv.models.particle_filter import ParticleFilterParameters
+from drake_uuv.models.unscented import UnscentedRangeUpdate
 from drake_uuv.scenario.validation import (
     check_choice,
     check_positive,
@@ -24,6 +26,7 @@ from drake_uuv.scenario.validation import (
 
 NOISE_MODELS = ("derived", "paper_printed")
 HANDOVERS = ("rule", "threshold")
+VEHICLE_MOTIONS = ("commanded", "navigation")
 
 
 def _identity(n: int) -> list[list[float]]:
@@ -64,7 +67,7 @@ class EstimatorOptions:
         check_positive(
             f"{name}.added_acceleration_variance", self.added_acceleration_variance, strict=False
         )
-        check_choice(f"{name}.vehicle_motion", self.vehicle_motion, ("commanded", "navigation"))
+        check_choice(f"{name}.vehicle_motion", self.vehicle_motion, VEHICLE_MOTIONS)
 
     def planning_model(self) -> EstimatorPlanningModel:
         """What an attitude planner assumes of this estimator: the paper's ``Y``."""
@@ -132,21 +135,27 @@ class RawRangeOptions(EstimatorOptions):
             f"{name}.particle_bandwidth_scale", self.particle_bandwidth_scale, strict=False
         )
 
-    def handover_rule(self) -> HandoverRule | HandoverPolicy:
+    def handover_policy(self) -> HandoverPolicy:
         """The hand-over these fields describe."""
         if self.handover == "threshold":
-            return HandoverPolicy(
+            return ThresholdHandover(
                 position_variance_threshold=self.linear_start_position_variance,
                 max_linear_steps=self.linear_start_max_steps,
             )
-        return HandoverRule(
+        return HandoverRule(**self.rule_fields())
+
+    def rule_fields(self) -> dict[str, Any]:
+        """The :class:`~drake_uuv.models.handover.HandoverRule` fields of ``handover: rule``
+        (a subclass with more of the rule's fields adds them)."""
+        return dict(
             angle_tolerance=self.handover_angle,
             prior_share=self.handover_prior_share,
             max_linear_steps=self.linear_start_max_steps,
-            second_order_tolerance=getattr(self, "handover_second_order", None),
-            particle_bridge=getattr(self, "particle_bridge", False),
-            fallback_factor=getattr(self, "particle_fallback_factor", 1.2),
         )
+
+    def range_update(self) -> RangeUpdate | None:
+        """The Gaussian update on the raw ranges (None: the filter carries particles only)."""
+        return None
 
     def planning_model(self) -> EstimatorPlanningModel:
         """The raw ranges, after a linear start the planner mirrors by its threshold (none when
@@ -189,6 +198,13 @@ class GaussianRangeOptions(RawRangeOptions):
                  "must be set with particle_bridge (the bridge leaves the particles on it)",
                  None)  # fmt: skip
 
+    def rule_fields(self) -> dict[str, Any]:
+        return dict(
+            super().rule_fields(),
+            particle_bridge=self.particle_bridge,
+            fallback_factor=self.particle_fallback_factor,
+        )
+
 
 @dataclass
 class LinearizedRangeOptions(GaussianRangeOptions):
@@ -203,21 +219,33 @@ class LinearizedRangeOptions(GaussianRangeOptions):
         if self.handover_second_order is not None:
             check_positive(f"{name}.handover_second_order", self.handover_second_order)
 
+    def rule_fields(self) -> dict[str, Any]:
+        return dict(super().rule_fields(), second_order_tolerance=self.handover_second_order)
+
 
 @dataclass
 class Ekf(LinearizedRangeOptions):
     """Extended Kalman filter on both raw ranges, all f samples."""
+
+    def range_update(self) -> RangeUpdate:
+        return ekf_update
 
 
 @dataclass
 class Iekf(LinearizedRangeOptions):
     """Iterated EKF (Gauss–Newton with a backtracking step) on both raw ranges."""
 
+    def range_update(self) -> RangeUpdate:
+        return iekf_update
+
 
 @dataclass
 class Ukf(GaussianRangeOptions):
     """Unscented Kalman filter on both raw ranges (scaled unscented transform, α = 1, β = 2,
     κ = 3 − n: sigma points at ±√3 σ, every weight positive)."""
+
+    def range_update(self) -> RangeUpdate:
+        return UnscentedRangeUpdate()
 
 
 @dataclass

@@ -1,12 +1,14 @@
 """The run monitor stops a broken estimator with a message that says which check and when."""
 
+import functools
+
 import numpy as np
 import pytest
 
 from drake_uuv import ClosedLoopSimulation, load_scenario
 from drake_uuv.cli import main
 from drake_uuv.estimators import RangeDifferenceKalmanFilter
-from drake_uuv.estimators.base import MeasurementUpdate
+from drake_uuv.estimators.base import EstimatorSetting, MeasurementUpdate
 from drake_uuv.estimators.factory import ESTIMATORS
 from drake_uuv.monitor import SimulationFailure
 from drake_uuv.scenario import PaperKf
@@ -17,12 +19,12 @@ SHORT = ["steps=80", "steady_state_start=0"]
 class BrokenFilter(RangeDifferenceKalmanFilter):
     """The paper's KF, sabotaged from step ``at`` on by ``how``."""
 
-    def __init__(self, how: str, at: int, *args) -> None:
-        super().__init__(*args)
+    def __init__(self, config: PaperKf, *, setting: EstimatorSetting, how: str, at: int) -> None:
+        super().__init__(config, setting=setting)
         self._how, self._at = how, at
 
-    def measurement_update(self, context, x_prior, P_prior, status):
-        update = super().measurement_update(context, x_prior, P_prior, status)
+    def measurement_update(self, context, prior, ranges):
+        update = super().measurement_update(context, prior, ranges)
         if round(context.get_time() / 0.5) < self._at:
             return update
         if self._how == "indefinite":
@@ -43,15 +45,8 @@ class BrokenFilter(RangeDifferenceKalmanFilter):
 @pytest.fixture
 def broken(monkeypatch):
     def use(how: str, at: int) -> None:
-        def make(scenario):
-            e = scenario.estimator
-            return BrokenFilter(
-                how, at, scenario.time_step, np.asarray(scenario.target.acceleration_covariance),
-                np.asarray(e.initial_estimate), np.asarray(e.initial_covariance),
-            )  # fmt: skip
-
         # The estimator slot's factory builds the sabotaged filter for the paper's KF.
-        monkeypatch.setitem(ESTIMATORS, PaperKf, make)
+        monkeypatch.setitem(ESTIMATORS, PaperKf, functools.partial(BrokenFilter, how=how, at=at))
 
     return use
 

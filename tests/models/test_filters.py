@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 from drake_uuv.models.filters import (
-    HandoverPolicy,
     ekf_update,
     iekf_update,
     predict,
@@ -138,13 +137,3 @@ def test_iekf_reaches_the_map_estimate_from_a_poor_prior():
         for e in np.eye(6)
     ]
     np.testing.assert_allclose(gradient, 0.0, atol=1e-5)
-
-
-def test_handover_policy() -> None:
-    policy = HandoverPolicy(position_variance_threshold=0.5, min_linear_steps=2, max_linear_steps=9)
-    small, large = 0.1 * np.eye(6), np.eye(6)
-    assert not policy.handover_due(small, 1)  # below min_linear_steps
-    assert policy.handover_due(small, 2)
-    assert not policy.handover_due(large, 8)
-    assert policy.handover_due(large, 9)  # max_linear_steps reached
-    assert policy.linear_start and not HandoverPolicy(max_linear_steps=0).linear_start

@@ -10,6 +10,10 @@ from drake_uuv.models.filters import predict, range_difference_update
 from drake_uuv.models.handover import (
     LOST_NIS,
     HandoverRule,
+    Phase,
+    PhaseEvidence,
+    ThresholdHandover,
+    Transition,
     cross_range_angle,
     prior_share_predict,
     prior_share_update,
@@ -206,3 +210,73 @@ def test_a_bridged_filter_is_lost_beyond_the_one_in_a_million_nis():
     assert rule.lost(LOST_NIS * 1.001) and not rule.lost(LOST_NIS * 0.999)
     assert not rule.lost(math.nan)
     assert not HandoverRule().lost(1e9)  # no bridge: nothing to fall back to
+
+
+def test_threshold_hand_over() -> None:
+    policy = ThresholdHandover(
+        position_variance_threshold=0.5, min_linear_steps=2, max_linear_steps=9
+    )
+    small, large = 0.1 * np.eye(6), np.eye(6)
+    assert not policy.handover_due(small, 1)  # below min_linear_steps
+    assert policy.handover_due(small, 2)
+    assert not policy.handover_due(large, 8)
+    assert policy.handover_due(large, 9)  # max_linear_steps reached
+    assert policy.linear_start and not ThresholdHandover(max_linear_steps=0).linear_start
+    assert not policy.particle_bridge
+
+
+def _evidence(P: np.ndarray, done: int, *, gaussian: bool = True, particles: bool = True,
+              share: float = 0.01, nis: float = 1.0) -> PhaseEvidence:  # fmt: skip
+    x = np.array([-2.0, -2.0, 0.3, 0.0, 0.0, 0.0])
+    return PhaseEvidence(
+        x=x, P=P, nis=nis, linear_updates=done, prior_share=share * P,
+        q_s=np.array([-1.0, 1.0, 0.0]), noise_std=np.array([0.1, 0.1]), gaussian=gaussian,
+        particles=particles,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "gaussian, phase, P_scale, expected",
+    [
+        (True, Phase.LINEAR, 0.1, Phase.RANGE),  # trace 0.3 ≤ 0.5: hand over
+        (False, Phase.LINEAR, 0.1, Phase.PARTICLE),  # no Gaussian update: to particles
+        (True, Phase.LINEAR, 1.0, Phase.LINEAR),  # trace 3 > 0.5: stay
+        (True, Phase.RANGE, 100.0, Phase.RANGE),  # one way: never back
+        (False, Phase.PARTICLE, 0.01, Phase.PARTICLE),
+    ],
+)
+def test_threshold_next_phase(gaussian, phase, P_scale, expected) -> None:
+    evidence = _evidence(P_scale * np.eye(6), 5, gaussian=gaussian, particles=not gaussian)
+    assert ThresholdHandover().next_phase(phase, evidence) == Transition(expected)
+
+
+@pytest.mark.parametrize(
+    "phase, P_scale, nis, gaussian, expected",
+    [
+        # Linear: narrow and forgotten → the Gaussian update; a particle filter → particles.
+        (Phase.LINEAR, 0.01, 1.0, True, Transition(Phase.RANGE)),
+        (Phase.LINEAR, 0.01, 1.0, False, Transition(Phase.PARTICLE)),
+        # Linear, forgotten but wide (θ ≈ 0.7 rad): a bridged Gaussian filter → particles.
+        (Phase.LINEAR, 2.0, 1.0, True, Transition(Phase.PARTICLE)),
+        # Particles: narrow → back to the Gaussian update; wide → stay.
+        (Phase.PARTICLE, 0.01, 1.0, True, Transition(Phase.RANGE)),
+        (Phase.PARTICLE, 2.0, 1.0, True, Transition(Phase.PARTICLE)),
+        # Gaussian: too wide → particles from its own posterior; lost → redrawn from the prior.
+        (Phase.RANGE, 2.0, 1.0, True, Transition(Phase.PARTICLE)),
+        (Phase.RANGE, 0.01, 1e3, True, Transition(Phase.PARTICLE, redraw_from_prior=True)),
+        (Phase.RANGE, 0.01, 1.0, True, Transition(Phase.RANGE)),
+    ],
+)
+def test_rule_next_phase(phase, P_scale, nis, gaussian, expected) -> None:
+    rule = HandoverRule(particle_bridge=True)
+    evidence = _evidence(P_scale * np.eye(6), 5, gaussian=gaussian, nis=nis)
+    assert rule.next_phase(phase, evidence) == expected
+
+
+def test_without_the_bridge_a_gaussian_filter_never_leaves_its_phase() -> None:
+    rule = HandoverRule()
+    assert rule.next_phase(Phase.RANGE, _evidence(2.0 * np.eye(6), 5, nis=1e3)) == Transition(
+        Phase.RANGE
+    )
+    wide = _evidence(2.0 * np.eye(6), 5, particles=False)
+    assert rule.next_phase(Phase.LINEAR, wide) == Transition(Phase.LINEAR)

@@ -1,0 +1,164 @@
+"""The particle cloud a raw-range filter carries where a Gaussian cannot describe the posterior.
+
+A component of :class:`~drake_uuv.estimators.range_filter.RangeFilter`: it declares its own
+discrete state, random input and cache entry on the filter that owns it, and its steps are
+:mod:`drake_uuv.models.particle_filter`'s regularised particle filter.
+"""
+
+import math
+
+import numpy as np
+from pydrake.common import RandomDistribution
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context, DiscreteValues, ValueProducer
+
+from drake_uuv.estimators.base import FilteredEstimate, RelativeStateEstimator
+from drake_uuv.models.measurement import VALID
+from drake_uuv.models.particle_filter import (
+    STATE_SIZE,
+    ParticleFilterParameters,
+    initial_particles,
+    pf_predict,
+    pf_update,
+    weighted_moments,
+)
+from drake_uuv.primitives.random_input import declare_random_input
+
+# The uniform draw of the random port becomes a generator seed with this many bits (a double
+# in [0, 1) carries 53).
+_SEED_BITS = 53
+
+
+class ParticleCloud:
+    """N weighted particles of the relative state, declared on ``host``.
+
+    The filtered estimate of a particle step is the weighted mean and covariance of the
+    predicted particles reweighted by the ranges' likelihood (:meth:`posterior`, a cache entry,
+    deterministic in the inputs and the state); :meth:`advance`, called from the host's
+    periodic update, resamples, regularises and moves each particle by the model with its
+    own target acceleration, and writes the predicted cloud's mean and covariance as the
+    host's prediction. Randomness enters only through the host's random input port
+    ``particle_seed`` (one uniform draw per step, read only in the periodic update, where it
+    seeds that update's ``numpy.random.Generator``), so a run is reproducible from the
+    diagram's seed.
+
+    State on the host: the predicted particles (6N, state-major: the N values of ``q_x``, then
+    of ``q_y``, …) and their log weights (N). In the host's stored frame (see
+    :mod:`~drake_uuv.estimators.vehicle_motion`): with ``vehicle_motion: navigation`` the
+    particles are the target's, negated.
+    """
+
+    def __init__(
+        self,
+        host: RelativeStateEstimator,
+        parameters: ParticleFilterParameters,
+        range_covariance: np.ndarray,
+    ) -> None:
+        if not isinstance(parameters, ParticleFilterParameters):
+            raise ValueError(f"parameters: must be ParticleFilterParameters, got {parameters!r}")
+        self._host = host
+        self._parameters = parameters
+        self._R = range_covariance
+        n = parameters.count
+        self._particles_index = host.DeclareDiscreteState(np.zeros(STATE_SIZE * n))
+        self._log_weights_index = host.DeclareDiscreteState(np.full(n, -math.log(n)))
+        self._seed_port = declare_random_input(
+            host, "particle_seed", 1, RandomDistribution.kUniform
+        )
+        # The posterior log weights, shared by the filtered output and the periodic update.
+        self._posterior = host.DeclareCacheEntry(
+            "particle posterior",
+            ValueProducer(
+                allocate=AbstractValue.Make((np.zeros(6), np.eye(6), math.nan, np.zeros(n))).Clone,
+                calc=self._calc_posterior,
+            ),
+            host.depends_on_measurement(),
+        )
+
+    @property
+    def parameters(self) -> ParticleFilterParameters:
+        return self._parameters
+
+    def particles(self, context: Context) -> np.ndarray:
+        """The predicted particles of this step as a 6×N array of relative states ``Υ``."""
+        value = context.get_discrete_state(self._particles_index).get_value()
+        particles = value.reshape(STATE_SIZE, self._parameters.count)
+        motion = self._host.vehicle_motion
+        if motion.state_ports:  # stored less the vehicle's state: add X of the step
+            return particles + motion.offset(context)[:, np.newaxis]
+        return particles
+
+    def set_particles(
+        self, context: Context, particles: np.ndarray, log_weights: np.ndarray
+    ) -> None:
+        """Sets this step's predicted particles (6×N relative states) and log weights."""
+        particles = np.asarray(particles, dtype=float)
+        motion = self._host.vehicle_motion
+        if motion.state_ports:
+            particles = particles - motion.offset(context)[:, np.newaxis]
+        context.SetDiscreteState(self._particles_index, particles.ravel())
+        context.SetDiscreteState(self._log_weights_index, np.asarray(log_weights, dtype=float))
+
+    def log_weights(self, context: Context) -> np.ndarray:
+        """The predicted particles' log weights (N)."""
+        return context.get_discrete_state(self._log_weights_index).get_value()
+
+    def posterior(self, context: Context) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+        """``(x, P, nis, log_weights)`` of this step's ranges (:func:`pf_update`)."""
+        return self._posterior.Eval(context)
+
+    def _calc_posterior(self, context: Context, value: AbstractValue) -> None:
+        ranges = self._host.ranges(context)
+        value.set_value(
+            pf_update(
+                self.particles(context),
+                self.log_weights(context),
+                ranges.z,
+                ranges.q_s,
+                self._R,
+                ranges.sonars,
+            )
+        )
+
+    def advance(
+        self,
+        context: Context,
+        filtered: FilteredEstimate,
+        discrete_state: DiscreteValues,
+        draw: tuple[np.ndarray, np.ndarray] | None = None,
+        weigh_draw: bool = False,
+    ) -> None:
+        """The periodic update: the particles of this step (drawn from ``N(draw)``, weighed by
+        this step's ranges with ``weigh_draw``; else reweighted by this step's ranges when
+        ``filtered`` applied an update), resampled, regularised and predicted; the host's
+        prediction becomes the predicted cloud's mean and covariance."""
+        host = self._host
+        u = float(self._seed_port.Eval(context)[0])
+        rng = np.random.default_rng(int(u * 2.0**_SEED_BITS))
+        count = self._parameters.count
+        if draw is not None:
+            particles = initial_particles(draw[0], draw[1], count, rng)
+            log_weights = np.full(count, -math.log(count))
+            if weigh_draw:
+                ranges = host.ranges(context)
+                log_weights = pf_update(
+                    particles, log_weights, ranges.z, ranges.q_s, self._R, ranges.sonars
+                )[3]
+        else:
+            particles = self.particles(context)
+            if filtered.status == VALID:  # this step's ranges reweight the cloud
+                log_weights = self.posterior(context)[3]
+            else:  # no update, or one the gate rejected: the prediction's weights stand
+                log_weights = self.log_weights(context)
+        motion = host.vehicle_motion
+        if motion.state_ports:  # back to the stored frame: the target's particles, negated
+            particles = particles - motion.offset(context)[:, np.newaxis]
+        A, B, W = host.model
+        particles, log_weights, _ = pf_predict(
+            particles, log_weights, motion.acceleration(context), A, B, W, rng,
+            self._parameters,
+        )  # fmt: skip
+        x, P = weighted_moments(particles, np.exp(log_weights))
+        host.write_prediction(discrete_state, x, P)
+        discrete_state.set_value(self._particles_index, particles.ravel())
+        discrete_state.set_value(self._log_weights_index, log_weights)

@@ -1,0 +1,340 @@
+"""The raw-range filters alone, with ``FixValue``d inputs, against the plain-numpy steps of
+:mod:`drake_uuv.models`: ports, the Gaussian updates (EKF, IEKF, UKF), missing returns, the
+linear start, a whole hand-over against composed numpy steps, and the factory."""
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import AddRandomInputs
+
+from drake_uuv.estimators import RangeFilter, make_estimator
+from drake_uuv.models.filters import ekf_update, iekf_update, predict, range_difference_update
+from drake_uuv.models.handover import HandoverRule, Phase, ThresholdHandover
+from drake_uuv.models.measurement import (
+    DROPPED,
+    OUT_OF_BEAM,
+    VALID,
+    range_difference_noise,
+    range_measurement,
+)
+from drake_uuv.models.motion import process_noise_covariance
+from drake_uuv.models.unscented import (
+    SigmaPointParameters,
+    UnscentedRangeUpdate,
+    ukf_range_update,
+)
+from drake_uuv.scenario import Ekf, ScenarioError, load_scenario
+from drake_uuv.testing import after_update
+from tests.conftest import ETA_UNEQUAL, X0, T, W
+from tests.estimators.range_filters import (
+    A_W,
+    NO_BRIDGE,
+    P0,
+    Q_S,
+    RANGE_ONLY,
+    SETTING,
+    A,
+    B,
+    F,
+    R,
+    context_of,
+    filtered,
+    make,
+    means,
+    samples,
+)
+
+UPDATES = {"ekf": ekf_update, "iekf": iekf_update, "ukf": ukf_range_update}
+
+
+@pytest.mark.parametrize("kind", ["ekf", "iekf", "ukf", "pf"])
+@pytest.mark.parametrize("bridge", [False, True])
+def test_ports_sizes_and_feedthrough(kind: str, bridge: bool) -> None:
+    system = make(kind, particle_bridge=bridge) if kind != "pf" else make(kind)
+    particles = kind == "pf" or bridge
+    sizes = {"range_samples": 2 * F, "sonar_status": 2, "R_WB": 9, "u1_W": 3}
+    if particles:
+        sizes["particle_seed"] = 1
+    names = [system.get_input_port(i).get_name() for i in range(system.num_input_ports())]
+    assert {n: system.GetInputPort(n).size() for n in names} == sizes
+    outputs = {"x_TU_hat": 6, "P_TU": 36, "x_TU_prior": 6, "P_TU_prior": 36,
+               "measurement_status": 1, "nis": 1}  # fmt: skip
+    names = [system.get_output_port(i).get_name() for i in range(system.num_output_ports())]
+    assert {n: system.GetOutputPort(n).size() for n in names} == outputs
+    x_hat = system.GetOutputPort("x_TU_hat").get_index()
+    for name in ("range_samples", "R_WB", "sonar_status"):
+        assert system.HasDirectFeedthrough(system.GetInputPort(name).get_index(), x_hat)
+    for name in ["u1_W", *(["particle_seed"] if particles else [])]:
+        assert not system.HasDirectFeedthrough(system.GetInputPort(name).get_index(), x_hat)
+    x_prior = system.GetOutputPort("x_TU_prior").get_index()
+    assert not any(system.HasDirectFeedthrough(i, x_prior) for i in range(len(sizes)))
+    builder = DiagramBuilder()
+    builder.AddSystem(system)
+    assert AddRandomInputs(T, builder) == int(particles)  # exactly the seed port is random
+
+
+@pytest.mark.parametrize("kind", ["ekf", "iekf", "ukf"])
+def test_range_update_is_the_numpy_update_then_the_prediction(kind: str) -> None:
+    system = make(kind, **RANGE_ONLY)
+    context = context_of(system)
+    x, P, nis = UPDATES[kind](X0, P0, means(), Q_S, R)
+    x_hat, P_hat, status, nis_hat = filtered(system, context)
+    assert_allclose(x_hat, x, rtol=1e-13, atol=1e-15)
+    assert_allclose(P_hat, P, rtol=1e-13, atol=1e-15)
+    assert (status, nis_hat) == (VALID, pytest.approx(nis, rel=1e-12))
+    after = after_update(system, context)
+    x_next, P_next = predict(x, P, A_W, A, B, process_noise_covariance(W, T))
+    assert_allclose(system.prior(after).x, x_next, rtol=1e-13)
+    assert_allclose(system.prior(after).P, P_next, rtol=1e-12)
+    assert system.phase(after) is Phase.RANGE and system.linear_updates(after) == 0
+
+
+def test_the_world_baseline_is_the_attitude_times_the_body_baseline() -> None:
+    system = make("ekf", **RANGE_ONLY)
+    angle = 0.9
+    R_WB = np.array(
+        [[math.cos(angle), -math.sin(angle), 0.0], [math.sin(angle), math.cos(angle), 0.0],
+         [0.0, 0.0, 1.0]]
+    )  # fmt: skip
+    context = context_of(system, R_WB=R_WB.ravel())
+    x, _, _ = ekf_update(X0, P0, means(), R_WB @ Q_S, R)
+    assert_allclose(filtered(system, context)[0], x, rtol=1e-13)
+    assert_allclose(system.ranges(context).q_s, R_WB @ Q_S)
+
+
+@pytest.mark.parametrize("kind", ["ekf", "ukf"])
+@pytest.mark.parametrize("missing", [0, 1])
+def test_one_sonar_updates_with_its_range_only(kind: str, missing: int) -> None:
+    system = make(kind, **RANGE_ONLY)
+    status = np.zeros(2)
+    status[missing] = DROPPED
+    measured = samples().reshape(2, F)
+    measured[missing] = np.nan
+    context = context_of(system, range_samples=measured.ravel(), sonar_status=status)
+    x, P, nis = UPDATES[kind](X0, P0, measured.mean(axis=1), Q_S, R, sonars=(1 - missing,))
+    x_hat, P_hat, code, nis_hat = filtered(system, context)
+    assert_allclose(x_hat, x, rtol=1e-13, atol=1e-15)
+    assert_allclose(P_hat, P, rtol=1e-13, atol=1e-16)
+    assert (code, nis_hat) == (VALID, pytest.approx(nis, rel=1e-12))
+    # One range informs one direction: the update differs from the two-range one.
+    assert not np.allclose(x, UPDATES[kind](X0, P0, means(), Q_S, R)[0])
+
+
+def test_no_return_only_predicts() -> None:
+    system = make("ekf", **RANGE_ONLY)
+    context = context_of(
+        system, range_samples=np.full(2 * F, np.nan), sonar_status=[OUT_OF_BEAM, DROPPED]
+    )
+    x_hat, P_hat, code, nis = filtered(system, context)
+    assert_allclose(x_hat, X0)
+    assert_allclose(P_hat, P0)
+    assert code == OUT_OF_BEAM and math.isnan(nis)
+    assert_allclose(system.prior(after_update(system, context)).x, A @ X0 + B @ A_W, rtol=1e-14)
+
+
+def test_ukf_uses_its_sigma_point_parameters() -> None:
+    params = SigmaPointParameters(alpha=0.5, beta=0.0, kappa=0.0)
+    update = UnscentedRangeUpdate(params)
+    assert_allclose(
+        update(X0, P0, means(), Q_S, R)[0],
+        ukf_range_update(X0, P0, means(), Q_S, R, (0, 1), params)[0],
+    )
+    assert not np.allclose(
+        update(X0, P0, means(), Q_S, R)[0], ukf_range_update(X0, P0, means(), Q_S, R)[0]
+    )
+    with pytest.raises(ValueError, match=r"^kappa: n \+ kappa must be > 0"):
+        UnscentedRangeUpdate(SigmaPointParameters(kappa=-6.0))
+    with pytest.raises(
+        ValueError, match=r"^parameters: must be SigmaPointParameters, got \(1, 2, 0\)$"
+    ):
+        UnscentedRangeUpdate((1, 2, 0))
+
+
+@pytest.mark.parametrize("kind", ["ekf", "ukf", "pf"])
+def test_linear_phase_is_the_papers_kf_on_the_sample_means(kind: str) -> None:
+    """The start uses Y = ½(z1² − z2²) with the sonar's own noise model at variance η/f."""
+    system = make(kind)
+    context = context_of(system)
+    assert system.phase(context) is Phase.LINEAR
+    z = means()
+    m, gamma = range_difference_noise("derived", ETA_UNEQUAL / F, z * z)
+    x, P, nis = range_difference_update(X0, P0, 0.5 * (z[0] ** 2 - z[1] ** 2), m, gamma, Q_S)
+    x_hat, P_hat, code, nis_hat = filtered(system, context)
+    assert_allclose(x_hat, x, rtol=1e-13)
+    assert_allclose(P_hat, P, rtol=1e-13)
+    assert (code, nis_hat) == (VALID, pytest.approx(nis, rel=1e-13))
+    # The applied linear update counts towards the hand-over.
+    after = after_update(system, context)
+    assert system.phase(after) is Phase.LINEAR and system.linear_updates(after) == 1
+
+
+@pytest.mark.parametrize("kind", ["ekf", "ukf", "pf"])
+def test_a_step_without_both_ranges_only_predicts_in_the_linear_phase(kind: str) -> None:
+    system = make(kind)
+    measured = samples().reshape(2, F)
+    measured[1] = np.nan
+    context = context_of(system, range_samples=measured.ravel(), sonar_status=[VALID, DROPPED])
+    x_hat, _, code, nis = filtered(system, context)
+    assert_allclose(x_hat, X0)
+    assert code == DROPPED and math.isnan(nis)
+    after = after_update(system, context)
+    assert system.phase(after) is Phase.LINEAR and system.linear_updates(after) == 0
+    assert_allclose(system.start.prior_share(after), A @ P0 @ A.T, rtol=1e-13)
+
+
+def test_hand_over_happens_and_the_system_tracks_the_numpy_steps() -> None:
+    """Stepped alone over 80 steps with a turning baseline, the LeafSystem's estimate,
+    covariance and phase equal those of the numpy steps composed here (linear KF on the
+    sample means until the threshold says so, then the EKF), and it hands over once."""
+    rng = np.random.default_rng(7)
+    system = RangeFilter(Ekf(handover="threshold"), setting=SETTING)
+    context = system.CreateDefaultContext()
+    Q = process_noise_covariance(W, T)
+    policy = ThresholdHandover()
+    x, P, linear, linear_steps = np.zeros(6), np.eye(6), True, 0
+    x_true = np.array([-2.0, -2.0, 0.0, 0.02, -0.01, 0.0])
+    phases = []
+    b = Q_S
+    for k in range(80):
+        angle = k * math.pi / 24
+        axis = np.array([math.sin(angle), math.cos(angle), 0.5 * math.cos(k * math.pi / 6)])
+        R_WB = _rotation_taking(b, axis)
+        q_s = R_WB @ b
+        d = range_measurement(x_true, q_s)
+        measured = d[:, None] + np.sqrt(ETA_UNEQUAL)[:, None] * rng.standard_normal((2, F))
+        a_W = 0.01 * rng.standard_normal(3)
+        for name, value in (("range_samples", measured.ravel()), ("R_WB", R_WB.ravel()),
+                            ("u1_W", a_W), ("sonar_status", np.zeros(2))):  # fmt: skip
+            system.GetInputPort(name).FixValue(context, value)
+        phases.append(system.phase(context) is Phase.LINEAR)
+        assert phases[-1] == linear
+        z = measured.mean(axis=1)
+        if linear:
+            m, gamma = range_difference_noise("derived", ETA_UNEQUAL / F, z * z)
+            x, P, _ = range_difference_update(x, P, 0.5 * (z[0] ** 2 - z[1] ** 2), m, gamma, q_s)
+            linear_steps += 1
+            linear = not policy.handover_due(P, linear_steps)
+        else:
+            x, P, _ = ekf_update(x, P, z, q_s, R)
+        x_hat, P_hat, _, _ = filtered(system, context)
+        assert_allclose(x_hat, x, rtol=1e-9, atol=1e-12)
+        assert_allclose(P_hat, P, rtol=1e-9, atol=1e-14)
+        context.SetDiscreteState(system.EvalUniquePeriodicDiscreteUpdate(context))
+        x, P = predict(x, P, a_W, A, B, Q)
+        x_true = A @ x_true + B @ a_W
+    handover = phases.index(False)
+    assert 5 < handover < 60 and not any(phases[handover:])
+    assert np.trace(P[:3, :3]) < 0.5
+
+
+def _rotation_taking(b: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """The minimal rotation taking the direction of ``b`` to that of ``direction``."""
+    u, v = b / np.linalg.norm(b), direction / np.linalg.norm(direction)
+    axis = np.cross(u, v)
+    s, c = np.linalg.norm(axis), float(u @ v)
+    if s < 1e-12:
+        return np.eye(3)
+    k = axis / s
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * K + (1 - c) * K @ K
+
+
+@pytest.mark.parametrize("tag", ["Ekf", "Iekf", "Ukf", "ParticleFilter"])
+def test_make_estimator_builds_the_pieces_the_config_names(tag: str) -> None:
+    scenario = load_scenario(
+        "paper", [f"estimator=!{tag}", "sonar.samples_per_step=4",
+                  "estimator.linear_start_max_steps=50"]
+    )  # fmt: skip
+    system = make_estimator(scenario)
+    assert isinstance(system, RangeFilter)
+    assert system.GetInputPort("range_samples").size() == 8
+    expected = {
+        "Ekf": HandoverRule(max_linear_steps=50, second_order_tolerance=1.0, particle_bridge=True),
+        "Iekf": HandoverRule(max_linear_steps=50, second_order_tolerance=1.0, particle_bridge=True),
+        "Ukf": HandoverRule(max_linear_steps=50, particle_bridge=True),
+        "ParticleFilter": HandoverRule(angle_tolerance=None, max_linear_steps=50),
+    }
+    assert system.policy == expected[tag]
+    assert system.cloud is not None and system.cloud.parameters.count == 5000
+    threshold = load_scenario(
+        "paper", [f"estimator=!{tag}", "estimator.handover=threshold",
+                  "estimator.linear_start_position_variance=0.3"]
+    )  # fmt: skip
+    policy = make_estimator(threshold).policy
+    assert policy == ThresholdHandover(0.3, 1, None)
+    # The absolute threshold has no Gaussian test to bridge: particles only without an update.
+    assert (make_estimator(threshold).cloud is None) is (tag != "ParticleFilter")
+
+
+@pytest.mark.parametrize("tag", ["Ekf", "Iekf", "Ukf"])
+def test_the_scenario_sets_the_bridge_of_each_gaussian_filter(tag: str) -> None:
+    bridged = make_estimator(load_scenario("paper", [f"estimator=!{tag}",
+                                                     "estimator.particle_count=300",
+                                                     "estimator.particle_fallback_factor=1.5"]))  # fmt: skip
+    assert bridged.policy.particle_bridge and bridged.policy.fallback_factor == 1.5
+    assert bridged.cloud.parameters.count == 300
+    assert bridged.HasInputPort("particle_seed")
+    plain = make_estimator(
+        load_scenario("paper", [f"estimator=!{tag}", "estimator.particle_bridge=false"])
+    )
+    assert not plain.policy.particle_bridge and plain.cloud is None
+    assert not plain.HasInputPort("particle_seed")
+
+
+def test_bad_scenario_values_are_refused() -> None:
+    with pytest.raises(ScenarioError, match=r"^estimator: unknown variant !Foo \(known: !PaperKf"):
+        load_scenario("paper", ["estimator=!Foo"])
+    with pytest.raises(ScenarioError, match=r"^estimator.linear_start_max_steps: must be ≥ 0"):
+        load_scenario("paper", ["estimator=!Ekf", "estimator.linear_start_max_steps=-1"])
+    with pytest.raises(ScenarioError, match=r"^estimator.linear_start_position_variance"):
+        load_scenario("paper", ["estimator=!Ekf", "estimator.linear_start_position_variance=0"])
+    with pytest.raises(ScenarioError, match=r"^estimator.linear_start_max_steps: unknown field"):
+        load_scenario("paper", ["estimator.linear_start_max_steps=3"])  # the paper's KF has none
+    with pytest.raises(ScenarioError, match=r"^estimator.linear_start_max_steps: must not be 0"):
+        make("pf", linear_start_max_steps=0)
+
+
+def test_a_filter_without_a_gaussian_update_needs_the_linear_start() -> None:
+    class ParticlesOnly(Ekf):
+        """A throwaway variant: the EKF's fields, no Gaussian update."""
+
+        def range_update(self) -> None:
+            return None
+
+    with pytest.raises(ValueError, match=r"^handover: a filter without a Gaussian update draws"):
+        RangeFilter(ParticlesOnly(linear_start_max_steps=0), setting=SETTING)
+    assert RangeFilter(ParticlesOnly(), setting=SETTING).cloud is not None
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (["estimator=!Ukf", "estimator.particle_fallback_factor=0.5"],
+         r"^estimator.particle_fallback_factor: must be ≥ 1, got 0.5$"),
+        (["estimator=!Ekf", "estimator.handover_angle=null"],
+         r"^estimator.handover_angle: must be set with particle_bridge .*, got None$"),
+        (["estimator=!Ekf", "estimator.particle_count=5"],
+         r"^estimator.particle_count: must be in \[10, 1e7\], got 5$"),
+        (["estimator=!PaperKf", "estimator.particle_bridge=true"],
+         r"^estimator.particle_bridge: unknown field"),
+        (["estimator=!ParticleFilter", "estimator.particle_bridge=false"],
+         r"^estimator.particle_bridge: unknown field"),
+    ],
+)  # fmt: skip
+def test_bad_bridge_values_name_the_field(overrides: list[str], message: str) -> None:
+    with pytest.raises(ScenarioError, match=message):
+        load_scenario("paper", overrides)
+
+
+def test_bad_noise_values_name_the_field() -> None:
+    with pytest.raises(ScenarioError, match=r"^estimator.noise_model: must be one of derived"):
+        make("ukf", noise_model="exact")
+    with pytest.raises(ValueError, match=r"^config: must be an estimator's dataclass, got 3"):
+        RangeFilter(3, setting=SETTING)
+
+
+def test_no_bridge_leaves_a_gaussian_filter_without_particles() -> None:
+    assert make("ekf", **NO_BRIDGE).cloud is None
