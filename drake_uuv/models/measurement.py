@@ -22,9 +22,11 @@ MIN_RANGE = 1e-9
 # A step's measurement status: per sonar, whether its return arrived (the sonar's
 # ``sonar_status``), and for the whole update (the estimator's ``measurement_status``),
 # which adds GATED: rejected by the NIS gate.
-VALID, DROPPED, OUT_OF_BEAM, OUT_OF_RANGE, GATED = 0, 1, 2, 3, 4
+# NO_ARRIVAL: no range of a sonar reached the estimator at this tick (its pings are late).
+VALID, DROPPED, OUT_OF_BEAM, OUT_OF_RANGE, GATED, NO_ARRIVAL = 0, 1, 2, 3, 4, 5
 STATUS_NAMES = {VALID: "valid", DROPPED: "dropped", OUT_OF_BEAM: "out of beam",
-                OUT_OF_RANGE: "out of range", GATED: "gated"}  # fmt: skip
+                OUT_OF_RANGE: "out of range", GATED: "gated",
+                NO_ARRIVAL: "no arrival"}  # fmt: skip
 
 
 def range_measurement(x: np.ndarray, q_s: np.ndarray) -> np.ndarray:

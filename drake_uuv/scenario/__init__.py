@@ -35,6 +35,12 @@ from drake_uuv.scenario.loading import (
     validate_scenario,
     variants,
 )
+from drake_uuv.scenario.navigation import (
+    InertialNavigation,
+    NavigationConfig,
+    NavigationErrors,
+    PerfectNavigation,
+)
 from drake_uuv.scenario.plants import HoveringAuv, KinematicUuv, PlantConfig
 from drake_uuv.scenario.schema import (
     SECTIONS,
@@ -69,13 +75,17 @@ __all__ = [
     "EstimatorOptions",
     "FixedAttitude",
     "HoveringAuv",
+    "InertialNavigation",
     "InformationSeeking",
     "Iekf",
     "KinematicUuv",
     "LinearizedRangeOptions",
     "LqrTracking",
+    "NavigationConfig",
+    "NavigationErrors",
     "PaperKf",
     "PaperTracking",
+    "PerfectNavigation",
     "ParticleFilter",
     "PlantConfig",
     "RandomAttitude",

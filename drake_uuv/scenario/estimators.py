@@ -27,6 +27,7 @@ from drake_uuv.scenario.validation import (
 NOISE_MODELS = ("derived", "paper_printed")
 HANDOVERS = ("rule", "threshold")
 VEHICLE_MOTIONS = ("commanded", "navigation")
+ERROR_MODELS = ("modelled", "ideal")
 
 
 def _identity(n: int) -> list[list[float]]:
@@ -58,6 +59,12 @@ class EstimatorOptions:
     # "navigation" (it predicts the target and takes the vehicle's state, known as the paper
     # assumes, from its navigation: exact for a vehicle that does not move as commanded).
     vehicle_motion: str = "commanded"
+    # What the filter believes of the navigation and the sonars' timing: "modelled" (their
+    # errors as the scenario states them: attitude noise into the measurement noise, DVL noise
+    # into the process noise, each range at its own ping time, the biases' error floors in
+    # the covariance) or "ideal" (perfect navigation, both ranges at the tick they arrive:
+    # what ignoring them costs). The same with perfect navigation and the paper's timing.
+    error_model: str = "modelled"
 
     def validate(self, name: str) -> None:
         check_choice(f"{name}.noise_model", self.noise_model, NOISE_MODELS)
@@ -68,6 +75,7 @@ class EstimatorOptions:
             f"{name}.added_acceleration_variance", self.added_acceleration_variance, strict=False
         )
         check_choice(f"{name}.vehicle_motion", self.vehicle_motion, VEHICLE_MOTIONS)
+        check_choice(f"{name}.error_model", self.error_model, ERROR_MODELS)
 
     def planning_model(self) -> EstimatorPlanningModel:
         """What an attitude planner assumes of this estimator: the paper's ``Y``."""

@@ -23,6 +23,7 @@ import numpy as np
 
 from drake_uuv.scenario.attitude import AttitudeConfig, InformationSeeking, TrajectoryAttitude
 from drake_uuv.scenario.estimators import EstimatorConfig, PaperKf
+from drake_uuv.scenario.navigation import NavigationConfig, PerfectNavigation
 from drake_uuv.scenario.plants import KinematicUuv, PlantConfig
 from drake_uuv.scenario.tracking import PaperTracking, TrackingConfig
 from drake_uuv.scenario.validation import (
@@ -89,6 +90,15 @@ class SonarConfig:
     # distributed excess of mean outlier_scale [m].
     outlier_probability: float = 0.0
     outlier_scale: float = 1.0
+    # Timing, all zero by default (the paper: both sonars ping at the step's tick, and their
+    # ranges reach the estimator at once). When each sonar pings, seconds after the tick
+    # (each in [0, time_step)): two sonars on one hull alternate, or they interfere.
+    ping_offsets: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    # Seconds from a ping to the estimator: the echo's travel and its processing.
+    latency: float = 0.0
+    # ε: every measured range is scaled by (1 + ε), the error of the sound speed assumed
+    # (about 1500 m/s in seawater, varying by a few percent with temperature, salinity, depth).
+    sound_speed_error: float = 0.0
 
     def validate(self, name: str) -> None:
         baseline = check_vector(f"{name}.baseline", self.baseline, 3)
@@ -111,6 +121,12 @@ class SonarConfig:
         if not 0.0 <= self.outlier_probability < 1.0:
             fail(f"{name}.outlier_probability", "must be in [0, 1)", self.outlier_probability)
         check_positive(f"{name}.outlier_scale", self.outlier_scale)
+        offsets = check_vector(f"{name}.ping_offsets", self.ping_offsets, 2)
+        if np.any(offsets < 0.0):
+            fail(f"{name}.ping_offsets", "must be ≥ 0 each", self.ping_offsets)
+        check_positive(f"{name}.latency", self.latency, strict=False)
+        if not -0.1 < self.sound_speed_error < 0.1:
+            fail(f"{name}.sound_speed_error", "must be in (−0.1, 0.1)", self.sound_speed_error)
 
 
 @dataclass
@@ -139,6 +155,7 @@ class Scenario:
     target: TargetConfig = field(default_factory=TargetConfig)
     sonar: SonarConfig = field(default_factory=SonarConfig)
     plant: PlantConfig = field(default_factory=KinematicUuv)
+    navigation: NavigationConfig = field(default_factory=PerfectNavigation)
     estimator: EstimatorConfig = field(default_factory=PaperKf)
     attitude: AttitudeConfig = field(default_factory=TrajectoryAttitude)
     tracking: TrackingConfig = field(default_factory=PaperTracking)
@@ -157,6 +174,11 @@ class Scenario:
             )
         for name in SECTIONS:
             getattr(self, name).validate(name)
+        t = self.time_step
+        if max(self.sonar.ping_offsets) >= t:
+            fail("sonar.ping_offsets", f"must be < time_step = {t:g} each", self.sonar.ping_offsets)
+        if self.sonar.latency > 10.0 * t:
+            fail("sonar.latency", f"must be ≤ 10 time steps = {10.0 * t:g} s", self.sonar.latency)
         if isinstance(self.attitude, InformationSeeking):
             window = self.analysis.pe_window
             if not self.attitude.pe_lead <= window - 3:
@@ -195,6 +217,9 @@ def scenario_as_dict(scenario: "Scenario") -> dict[str, Any]:
 
 
 #: The slots: sections whose value is one of several variant dataclasses, chosen by YAML tag.
-SLOTS = ("plant", "estimator", "attitude", "tracking")
+SLOTS = ("plant", "navigation", "estimator", "attitude", "tracking")
 #: The sections of a scenario, in the order they are validated.
-SECTIONS = ("uuv", "target", "sonar", "plant", "estimator", "attitude", "tracking", "analysis")
+SECTIONS = (
+    "uuv", "target", "sonar", "plant", "navigation", "estimator", "attitude", "tracking",
+    "analysis",
+)  # fmt: skip
