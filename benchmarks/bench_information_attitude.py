@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from drake_uuv.attitude.information_seeking import InformationSeekingAttitude
-from drake_uuv.models.information import InformationSeekingPlanner
+from drake_uuv.models.information_planner import InformationSeekingPlanner
 from drake_uuv.models.so3 import exp_so3
 
 T = 0.5
