@@ -9,15 +9,16 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from drake_uuv.plants import KinematicUuvPlant, make_plant
-from drake_uuv.scenario import Scenario
+from drake_uuv.plants import KinematicUuvPlant, PlantSetting, make_plant
+from drake_uuv.scenario import KinematicUuv, Scenario
 from drake_uuv.testing import discrete_update, fixed_context
 from tests.conftest import T
 
 
 def plant_at(R0: np.ndarray | None = None) -> KinematicUuvPlant:
     R0 = np.eye(3) if R0 is None else R0
-    return KinematicUuvPlant(T, np.array([1.0, -2.0, 3.0]), np.array([0.1, 0.2, -0.3]), R0)
+    setting = PlantSetting(T, np.array([1.0, -2.0, 3.0]), np.array([0.1, 0.2, -0.3]), R0)
+    return KinematicUuvPlant(KinematicUuv(), setting=setting)
 
 
 def test_ports() -> None:
