@@ -7,15 +7,17 @@ import pytest
 from numpy.testing import assert_allclose
 from pydrake.math import RollPitchYaw, RotationMatrix
 
+from drake_uuv.models.information import TrackingPlanningModel
 from drake_uuv.models.so3 import exp_so3
 from drake_uuv.models.tracking_laws import (
     desired_relative_positions,
     heading_rotation,
     reference_rotation,
 )
-from drake_uuv.scenario import ScenarioError, load_scenario
+from drake_uuv.scenario import LqrTracking, PaperTracking, ScenarioError, load_scenario
 from drake_uuv.simulation import simulate
 from drake_uuv.testing import fixed_context
+from drake_uuv.tracking import TrackingSetting
 from tests.conftest import T
 from tests.tracking.controllers import lqr_controller, paper_controller
 
@@ -99,3 +101,20 @@ def test_bad_frame_is_named() -> None:
         match=r"^tracking.reference_frame: must be one of body, world, heading, got 'up'",
     ):
         load_scenario("paper", ["tracking.reference_frame=up"])
+
+
+def test_the_laws_say_what_a_planner_may_assume() -> None:
+    """q* when it turns with the body, and the reference lag: none when the LQR law feeds
+    the plan forward (it lands on R(k+1) q*), one step otherwise (it aims at R(k) q*)."""
+    body = (-2.0, -2.0, 0.0)
+    assert PaperTracking().planning_model() == TrackingPlanningModel(body, reference_lag=1)
+    assert LqrTracking().planning_model() == TrackingPlanningModel(body, reference_lag=0)
+    assert LqrTracking(feedforward=False).planning_model().reference_lag == 1
+    for frame in ("world", "heading"):
+        for law in (PaperTracking(reference_frame=frame), LqrTracking(reference_frame=frame)):
+            assert law.planning_model().desired_relative_position_B is None
+
+
+def test_a_bad_setting_names_the_field() -> None:
+    with pytest.raises(ValueError, match=r"^time_step: must be > 0, got -0.5$"):
+        TrackingSetting(time_step=-0.5)
