@@ -54,8 +54,8 @@ class Slot:
         return [f"!{variant.__name__}" for variant in self.table]
 
 
-#: The slots, in the order the builder makes them (the estimator's table holds functions of
-#: the scenario, the others classes built as ``cls(config, setting=...)``).
+#: The slots, in the order the builder makes them; each table maps a variant dataclass to what
+#: its factory builds the variant's system with.
 SLOT_REGISTRY: tuple[Slot, ...] = (
     Slot("plant", "uuv", PLANTS, make_plant),
     Slot("estimator", "estimator", ESTIMATORS, make_estimator),
