@@ -19,7 +19,7 @@ lint: $(PY)
 format: $(PY)
 	$(VENV)/bin/ruff check --fix . && $(VENV)/bin/ruff format .
 
-diagrams: $(PY)  ## regenerate diagrams/ (needs Graphviz)
+diagrams: $(PY)  ## regenerate diagrams/, the pictures the docs embed (needs Graphviz)
 	$(PY) scripts/export_diagrams.py
 
 bench: $(PY)

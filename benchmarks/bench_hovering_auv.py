@@ -36,13 +36,16 @@ from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuil
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, VectorLogSink
 
 from drake_uuv.analysis.vehicle_figures import attitude_errors, plot_attitude_tracking, plot_thrusts
-from drake_uuv.attitude import TrajectoryAttitudeGenerator
+from drake_uuv.attitude import TrajectoryAttitudeGenerator, attitude_setting
 from drake_uuv.models.vehicle_limits import vehicle_limits
+from drake_uuv.plants import PlantSetting
 from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
+from drake_uuv.scenario import TrajectoryAttitude, load_scenario
 from drake_uuv.scenario.plants import HoveringAuv
 
 OUTER_PERIOD = 0.5
-BASELINE = np.array([-1.0, 1.0, 0.0])
+#: From rest, upright, at the origin, stepped at the outer period.
+AT_REST = PlantSetting(OUTER_PERIOD, np.zeros(3), np.zeros(3), np.eye(3))
 
 
 class BoundedAcceleration(LeafSystem):
@@ -69,12 +72,13 @@ def build(
 ) -> tuple[Diagram, HoveringAuvPlant, dict[str, VectorLogSink], dict[str, VectorLogSink]]:
     """The plant, Algorithm 2 and the acceleration pattern, with loggers; returns the pieces."""
     builder = DiagramBuilder()
-    plant = builder.AddNamedSystem(
-        "uuv", HoveringAuvPlant(config, OUTER_PERIOD, np.zeros(3), np.zeros(3), np.zeros(3))
-    )
+    plant = builder.AddNamedSystem("uuv", HoveringAuvPlant(config, setting=AT_REST))
     attitude = builder.AddNamedSystem(
         "attitude_generator",
-        TrajectoryAttitudeGenerator(OUTER_PERIOD, BASELINE, max_angular_rate=max_angular_rate),
+        TrajectoryAttitudeGenerator(
+            TrajectoryAttitude(max_angular_rate=max_angular_rate),
+            setting=attitude_setting(load_scenario("paper")),  # t = 0.5 s, the paper's b
+        ),
     )
     accel = builder.AddNamedSystem("acceleration", BoundedAcceleration(acceleration, speed))
     builder.Connect(plant.GetOutputPort("R_WB"), attitude.GetInputPort("R_WB"))
@@ -165,9 +169,7 @@ def check_limits(config: HoveringAuv) -> None:
     print("reached in simulation when commanded beyond them (from rest, upright):")
     for what, u1, u2, seconds in cases:
         builder = DiagramBuilder()
-        plant = builder.AddSystem(
-            HoveringAuvPlant(config, OUTER_PERIOD, np.zeros(3), np.zeros(3), np.zeros(3))
-        )
+        plant = builder.AddSystem(HoveringAuvPlant(config, setting=AT_REST))
         for name, value in (("u1_B", u1), ("u2_W", u2)):
             source = builder.AddSystem(ConstantVectorSource(value))
             builder.Connect(source.get_output_port(), plant.GetInputPort(name))

@@ -14,23 +14,18 @@ import time
 
 import numpy as np
 
-from drake_uuv.attitude.information_seeking import InformationSeekingAttitude
-from drake_uuv.models.information import InformationSeekingPlanner
+from drake_uuv.attitude import make_attitude_generator
+from drake_uuv.models.information_planner import InformationSeekingPlanner
 from drake_uuv.models.so3 import exp_so3
+from drake_uuv.scenario import Scenario, load_scenario
 
-T = 0.5
-B = np.array([-1.0, 1.0, 0.0])
-W = np.diag([0.004, 0.001, 0.001])
-ETA = np.array([0.01, 0.01])
-Q_STAR = np.array([-2.0, -2.0, 0.0])
+PLANNER = "attitude=!InformationSeeking"
+EKF = ["estimator=!Ekf", "estimator.linear_start_max_steps=0"]  # ranges from the start
+#: The paper scenario's overrides of each planned-for model.
 VARIANTS = {
-    "kf (range_difference, cap)": {},
-    "ekf (ranges, cap, hold)": {"measurement_model": "ranges"},
-    "ekf (ranges, ball, reference lag 1: H=2)": {
-        "measurement_model": "ranges",
-        "position_prediction": "reference",
-        "reference_lag": 1,
-    },
+    "kf (range_difference, cap)": [PLANNER],
+    "ekf (ranges, cap, hold)": [f"{PLANNER} {{position_prediction: hold}}", *EKF],
+    "ekf (ranges, ball, reference lag 1: H=2)": [PLANNER, *EKF],
 }
 
 
@@ -50,8 +45,8 @@ def time_planner(planner: InformationSeekingPlanner, data: list, history: np.nda
     return (time.perf_counter() - start) / len(data)
 
 
-def time_system(planner: InformationSeekingPlanner, data: list) -> float:
-    system = InformationSeekingAttitude(planner)
+def time_system(scenario: Scenario, data: list) -> float:
+    system = make_attitude_generator(scenario)
     context = system.CreateDefaultContext()
     ports = [system.GetInputPort(name) for name in ("R_WB", "x_TU_hat", "P_TU")]
     rate, plan = system.GetOutputPort("u2_W"), system.GetOutputPort("R_WB_plan")
@@ -73,13 +68,12 @@ def main() -> None:
     args = parser.parse_args()
     data = inputs(args.steps)
     history = np.random.default_rng(1).normal(size=(22, 3))
-    for name, options in VARIANTS.items():
-        planner = InformationSeekingPlanner(
-            T, B, W, ETA, desired_relative_position=Q_STAR, **options
-        )
+    for name, overrides in VARIANTS.items():
+        scenario = load_scenario("paper", overrides)
+        planner = make_attitude_generator(scenario).planner
         candidates = len(planner.candidate_rotations(np.eye(3)))
         plan = statistics.median(time_planner(planner, data, history) for _ in range(args.repeats))
-        step = statistics.median(time_system(planner, data) for _ in range(args.repeats))
+        step = statistics.median(time_system(scenario, data) for _ in range(args.repeats))
         print(
             f"{name}: {candidates} candidates, scored horizon {planner.scored_horizon}; "
             f"plan {plan * 1e6:.0f} µs, system step {step * 1e6:.0f} µs"

@@ -1,6 +1,8 @@
 """The one builder of the closed loop: every system and logger named, every port wired here."""
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from pydrake.common import RandomDistribution, RandomGenerator
@@ -21,22 +23,47 @@ from pydrake.systems.primitives import (
 )
 
 from drake_uuv.attitude import make_attitude_generator
+from drake_uuv.attitude.factory import ATTITUDE_GENERATORS
 from drake_uuv.estimators import make_estimator
+from drake_uuv.estimators.factory import ESTIMATORS
 from drake_uuv.plants import TargetRandomWalk, make_plant
+from drake_uuv.plants.factory import PLANTS
 from drake_uuv.primitives import random_inputs
 from drake_uuv.scenario import Scenario
 from drake_uuv.sensors import DualSonar
 from drake_uuv.signals import Signal, check_contract, logged_signals
 from drake_uuv.tracking import make_tracking_controller
+from drake_uuv.tracking.factory import TRACKING_CONTROLLERS
 from drake_uuv.visualization.live_visualizer import LiveMeshcatVisualizer
 
-#: The slots: the diagram's system name → the scenario section whose variant builds it.
-SLOT_SYSTEMS = {
-    "uuv": "plant",
-    "estimator": "estimator",
-    "attitude_generator": "attitude",
-    "tracking_controller": "tracking",
-}
+
+@dataclass(frozen=True)
+class Slot:
+    """A slot of the loop: the scenario section whose variant chooses the system, the
+    system's name in the diagram, the factory's table (variant dataclass → its system) and
+    the factory itself."""
+
+    section: str
+    system: str
+    table: Mapping[type, Any]
+    make: Callable[[Scenario], System]
+
+    @property
+    def tags(self) -> list[str]:
+        """The YAML tags of the slot's variants (``!KinematicUuv``, …), in table order."""
+        return [f"!{variant.__name__}" for variant in self.table]
+
+
+#: The slots, in the order the builder makes them; each table maps a variant dataclass to what
+#: its factory builds the variant's system with.
+SLOT_REGISTRY: tuple[Slot, ...] = (
+    Slot("plant", "uuv", PLANTS, make_plant),
+    Slot("estimator", "estimator", ESTIMATORS, make_estimator),
+    Slot("attitude", "attitude_generator", ATTITUDE_GENERATORS, make_attitude_generator),
+    Slot("tracking", "tracking_controller", TRACKING_CONTROLLERS, make_tracking_controller),
+)
+#: Every system of the loop by its name in the diagram, in the order the builder adds them.
+SYSTEM_NAMES = ("uuv", "target", "sonar", "estimator", "attitude_generator", "tracking_controller")
 
 
 @dataclass
@@ -65,23 +92,41 @@ class UuvDiagram:
             hold.SetVectorState(hold.GetMyMutableContextFromRoot(context), draw)
 
 
-def make_systems(scenario: Scenario) -> dict[str, System]:
-    """The closed loop's systems by name, each built from its part of the scenario."""
-    return {
-        "uuv": make_plant(scenario),
-        "target": TargetRandomWalk.from_scenario(scenario),
-        "sonar": DualSonar.from_scenario(scenario),
-        "estimator": make_estimator(scenario),
-        "attitude_generator": make_attitude_generator(scenario),
-        "tracking_controller": make_tracking_controller(scenario),
+def make_systems(
+    scenario: Scenario, systems: Mapping[str, System] | None = None
+) -> dict[str, System]:
+    """The closed loop's systems by name (:data:`SYSTEM_NAMES`): those of ``systems`` as
+    given, the others built from their part of the scenario (each slot by its factory).
+
+    The wiring across slots is here and in the factories: the sonar's ``m`` and ``Γ``
+    follow the estimator section's noise model, whoever supplies the estimator.
+    """
+    given = dict(systems or {})
+    for name, system in given.items():
+        if name not in SYSTEM_NAMES:
+            raise ValueError(
+                f"systems: unknown system name {name!r} (the loop's are {', '.join(SYSTEM_NAMES)})"
+            )
+        if not isinstance(system, System):
+            raise ValueError(f"systems[{name!r}]: must be a Drake System, got {system!r}")
+    makers: dict[str, Callable[[], System]] = {
+        "uuv": lambda: make_plant(scenario),
+        "target": lambda: TargetRandomWalk(scenario.target, time_step=scenario.time_step),
+        "sonar": lambda: DualSonar(scenario.sonar, noise_model=scenario.estimator.noise_model),
+        "estimator": lambda: make_estimator(scenario),
+        "attitude_generator": lambda: make_attitude_generator(scenario),
+        "tracking_controller": lambda: make_tracking_controller(scenario),
     }
+    return {name: given[name] if name in given else makers[name]() for name in SYSTEM_NAMES}
 
 
 def make_uuv_diagram(
     scenario: Scenario,
+    *,
     builder: DiagramBuilder | None = None,
     meshcat: Meshcat | None = None,
     log: bool = True,
+    systems: Mapping[str, System] | None = None,
 ) -> UuvDiagram:
     """Builds the paper's closed loop from a validated scenario.
 
@@ -98,23 +143,28 @@ def make_uuv_diagram(
     ``log_<name>`` for each logged signal, sampled once per step so column k holds the value at
     step k, before that step's update.
 
-    Pass a ``builder`` to add systems of your own before building, ``log=False`` for a
-    diagram without loggers (a picture of the loop itself), and ``meshcat`` to draw the
+    ``systems`` maps names of the loop's systems (:data:`SYSTEM_NAMES`) to systems of your
+    own, used instead of the scenario's: e.g. ``systems={"estimator": MyEstimator()}`` with
+    any ``LeafSystem`` that reads the signals it needs by name and outputs its slot's
+    signals. Pass a ``builder`` to add systems of your own before building, ``log=False`` for
+    a diagram without loggers (a picture of the loop itself), and ``meshcat`` to draw the
     scene live (a :class:`~drake_uuv.visualization.live_visualizer.LiveMeshcatVisualizer`
-    named ``meshcat_visualizer``). A variant whose system lacks a signal of its slot, or reads
-    one nobody produces, is refused with a ``ValueError`` naming the variant and the port.
+    named ``meshcat_visualizer``). A system that lacks a signal of its slot (named with its
+    variant's tag, or ``given <class>`` for one of ``systems``), or reads one nobody
+    produces, is refused with a one-line ``ValueError`` naming the system and the port.
     """
     t = scenario.time_step
     builder = builder or DiagramBuilder()
-    systems = make_systems(scenario)
+    given = set(systems or {})
+    systems = make_systems(scenario, systems)
     for name, system in systems.items():
-        section = SLOT_SYSTEMS.get(name)
-        variant = f"!{type(getattr(scenario, section)).__name__}" if section else name
-        check_contract(name, system, variant)
+        check_contract(name, system, _origin(scenario, name, system, name in given))
         builder.AddNamedSystem(name, system)
     readers = dict(systems)
     if meshcat is not None:
-        visualizer = LiveMeshcatVisualizer(meshcat, np.asarray(scenario.sonar.baseline), t)
+        visualizer = LiveMeshcatVisualizer(
+            meshcat, baseline_B=np.asarray(scenario.sonar.baseline), publish_period=t
+        )
         readers["meshcat_visualizer"] = builder.AddNamedSystem("meshcat_visualizer", visualizer)
 
     producers = _producers(systems)
@@ -144,6 +194,17 @@ def make_uuv_diagram(
     diagram = builder.Build()
     diagram.set_name("uuv_closed_loop")
     return UuvDiagram(diagram, systems, loggers, signals, noise)
+
+
+def _origin(scenario: Scenario, name: str, system: System, given: bool) -> str:
+    """Where a system of the loop comes from, for its contract's errors: ``given <class>``
+    for one of the caller's, its variant's tag for a slot's, else its name."""
+    if given:
+        return f"given {type(system).__name__}"
+    for slot in SLOT_REGISTRY:
+        if slot.system == name:
+            return f"!{type(getattr(scenario, slot.section)).__name__}"
+    return name
 
 
 def _producers(systems: dict[str, System]) -> dict[str, OutputPort]:

@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from drake_uuv.models.information import excitation_eigenvalues, rotation_angles
+from drake_uuv.models.attitude_candidates import rotation_angles
+from drake_uuv.models.information import excitation_eigenvalues
 from drake_uuv.models.measurement import VALID, range_difference_noise
 from drake_uuv.models.pcrlb import bound_rmse, measurement_information, pcrlb_recursion
 from drake_uuv.models.tracking_laws import desired_relative_positions

@@ -47,6 +47,10 @@ class EstimatorHealthMonitor:
       ``nis_limit`` (a consistent filter's median NIS is about 0.5 for a scalar measurement,
       1.4 for two). The median ignores isolated outliers, which a gate may or may not reject;
       it trips only when most innovations are far larger than the filter predicts.
+
+    A failed check stops the Simulator (``EventStatus.Failed``, which ``AdvanceTo`` raises as
+    a ``RuntimeError``) and is recorded in :attr:`failure`, the one line that says which check
+    and when; :meth:`reset` clears it.
     """
 
     def __init__(
@@ -66,11 +70,14 @@ class EstimatorHealthMonitor:
         self._nis_sum = 0.0
         self._nis_limit = nis_limit
         self._symmetry_tolerance = symmetry_tolerance
+        #: Why the monitor stopped the run (``"<problem> at step k=… (t=… s)"``), or None.
+        self.failure: str | None = None
 
     def reset(self) -> None:
-        """Forgets the NIS history (call before each run)."""
+        """Forgets the NIS history and any failure (call before each run)."""
         self._recent_nis.clear()
         self._nis_sum = 0.0
+        self.failure = None
 
     def problem(self, context: Context) -> str | None:
         """A one-line description of what is wrong with the estimator, or None."""
@@ -119,7 +126,6 @@ class EstimatorHealthMonitor:
         if problem is None:
             return _SUCCEEDED
         k = round(root_context.get_time() / self._time_step)
+        self.failure = f"{problem} at step k={k} (t={root_context.get_time():g} s)"
         # No system pointer: pydrake crashes formatting a Python system's name into the error.
-        return EventStatus.Failed(
-            None, f"{problem} at step k={k} (t={root_context.get_time():g} s)"
-        )
+        return EventStatus.Failed(None, self.failure)

@@ -1,14 +1,16 @@
 """Run one closed-loop simulation and collect its log and metrics."""
 
 import dataclasses
+import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import Context
+from pydrake.systems.framework import Context, System
 
 from drake_uuv.diagram import UuvDiagram, make_uuv_diagram
 from drake_uuv.io import write_json_atomic, write_npz_atomic
@@ -57,31 +59,10 @@ def log_from_loggers(built: UuvDiagram, context: Context, steps: int) -> dict[st
     return log
 
 
-# Keys of the log format before the ports took frame notation (drake_uuv 0.1): old → new.
-_RENAMED_KEYS = {
-    "p_uuv": "p_WU", "v_uuv": "v_WU", "p_target": "p_WT", "v_target": "v_WT", "q_s": "b_W",
-    "P": "P_TU", "u1": "u1_B", "u2": "u2_W", "a_world": "u1_W",
-}  # fmt: skip
-
-
 def read_log(path: Path) -> dict[str, np.ndarray]:
-    """A run's ``log.npz`` as a dict, in the current format (keys = signal names).
-
-    A log written before the ports took frame notation (``p_uuv``, ``q_hat`` and ``v_hat``,
-    ``P``, ``a_world`` …) is read too and returned with the current keys.
-    """
+    """A run's ``log.npz`` as a dict (keys = signal names, plus ``k`` and ``time``)."""
     with np.load(path) as data:
-        log = {key: data[key] for key in data.files}
-    if "q_hat" in log and "v_hat" in log:
-        log["x_TU_hat"] = np.concatenate([log.pop("q_hat"), log.pop("v_hat")], axis=1)
-    return {_RENAMED_KEYS.get(key, key): value for key, value in log.items()}
-
-
-def _monitor_message(error: RuntimeError) -> str:
-    """The monitor's own message out of the Simulator's wrapping text."""
-    text = " ".join(str(error).split())
-    marker = "with message: "
-    return text.split(marker, 1)[1].rstrip(".").strip('"') if marker in text else text
+        return {key: data[key] for key in data.files}
 
 
 class ClosedLoopSimulation:
@@ -98,22 +79,33 @@ class ClosedLoopSimulation:
     With ``meshcat``, a live visualiser draws the scene while it simulates (see
     :class:`~drake_uuv.visualization.live_visualizer.LiveMeshcatVisualizer`).
 
-    A plant with continuous state sets up the integrator (its ``configure_simulator``).
-    Besides :func:`~drake_uuv.metrics.run_metrics`, a run's metrics hold
-    ``tracking_spectral_radius``: the largest |eigenvalue| of the tracking law's closed loop
-    ``A − B K`` on the relative double integrator (< 1: the error dynamics are stable; the
-    paper's law has 1, its undamped velocity mode), the same for every run of a scenario.
+    ``systems`` replaces systems of the loop with your own, by name (see
+    :func:`~drake_uuv.diagram.make_uuv_diagram`). A plant with continuous state sets up the
+    integrator (its ``configure_simulator``). Besides :func:`~drake_uuv.metrics.run_metrics`,
+    a run's metrics hold ``tracking_spectral_radius``: the largest |eigenvalue| of the
+    tracking law's closed loop ``A − B K`` on the relative double integrator (< 1: the error
+    dynamics are stable; the paper's law has 1, its undamped velocity mode), the same for
+    every run of a scenario; NaN for a tracking system without a ``gain`` (a 3×6 world-frame
+    gain on the relative state), such as one of your own.
     """
 
-    def __init__(self, scenario: Scenario, meshcat: Meshcat | None = None) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        *,
+        meshcat: Meshcat | None = None,
+        systems: Mapping[str, System] | None = None,
+    ) -> None:
         self.scenario = scenario
-        self.built = make_uuv_diagram(scenario, meshcat=meshcat)
+        self.built = make_uuv_diagram(scenario, meshcat=meshcat, systems=systems)
         self.diagram = self.built.diagram
         self.monitor = EstimatorHealthMonitor(self.built.systems["estimator"], scenario.time_step)
-        gain = self.built.systems["tracking_controller"].gain
+        gain = getattr(self.built.systems["tracking_controller"], "gain", None)
         # The same for every run: the tracking law's closed loop on the relative model.
-        self.tracking_spectral_radius = float(
-            np.max(np.abs(closed_loop_eigenvalues(scenario.time_step, gain)))
+        self.tracking_spectral_radius = (
+            math.nan
+            if gain is None
+            else float(np.max(np.abs(closed_loop_eigenvalues(scenario.time_step, gain))))
         )
 
     def run(self, seed: int | None = None, realtime_rate: float = 0.0) -> SimulationResult:
@@ -138,10 +130,10 @@ class ClosedLoopSimulation:
             simulator.Initialize()
             simulator.AdvanceTo((scenario.steps - 1) * scenario.time_step)
         except RuntimeError as e:
-            if "estimator" not in str(e):
+            if self.monitor.failure is None:
                 raise
             raise SimulationFailure(
-                f"seed {scenario.random_seed}: run stopped: {_monitor_message(e)}"
+                f"seed {scenario.random_seed}: run stopped: {self.monitor.failure}"
             ) from e
         log = log_from_loggers(self.built, context, scenario.steps)
         metrics = run_metrics(log, scenario)

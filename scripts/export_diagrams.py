@@ -1,15 +1,16 @@
-"""Regenerates diagrams/: the Graphviz export of every diagram variant the package builds.
+"""Regenerates diagrams/: the Graphviz exports the docs embed (``DOCUMENTED_DIAGRAMS``).
 
     python scripts/export_diagrams.py
 
-tests/test_diagram_export.py fails when a committed export is stale.
+tests/visualization/test_diagram_graph.py fails when a committed export is stale. Every
+variant's diagram is exported by ``drake-uuv diagram --all-variants --out DIR`` instead.
 """
 
 import argparse
 import shutil
 from pathlib import Path
 
-from drake_uuv.visualization.diagram_graph import export_all_variants
+from drake_uuv.visualization.diagram_graph import DOCUMENTED_DIAGRAMS, export_all_variants
 
 DIAGRAMS = Path(__file__).resolve().parents[1] / "diagrams"
 
@@ -19,8 +20,8 @@ def main() -> None:
     if shutil.which("dot") is None:
         raise SystemExit("Graphviz's dot is needed to render diagrams/ (apt-get install graphviz)")
     for old in DIAGRAMS.glob("*.*"):
-        old.unlink()  # a variant that no longer exists must not linger
-    for path in export_all_variants(DIAGRAMS):
+        old.unlink()  # an export the docs no longer embed must not linger
+    for path in export_all_variants(DIAGRAMS, exports=DOCUMENTED_DIAGRAMS):
         print(path.relative_to(DIAGRAMS.parent))
 
 

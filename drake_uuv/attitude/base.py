@@ -1,10 +1,71 @@
-"""What every attitude generator shares: the command ``u2`` and the published plan."""
+"""What every attitude generator gets from the rest of the scenario (:class:`AttitudeSetting`),
+and what the paper's generators share: the command ``u2`` and the published plan."""
+
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
 from drake_uuv.models.attitude_plans import attitude_command
+from drake_uuv.models.information import EstimatorPlanningModel, TrackingPlanningModel
 from drake_uuv.models.so3 import exp_so3
+from drake_uuv.primitives.setting import array_field, time_step_field
+
+
+@dataclass(frozen=True)
+class AttitudeSetting:
+    """What every system of the attitude slot gets besides its own configuration.
+
+    An attitude generator is built as ``cls(config, setting=AttitudeSetting(...))``; the
+    slot's factory (:func:`drake_uuv.attitude.make_attitude_generator`) makes the setting
+    from the scenario (:func:`drake_uuv.attitude.factory.attitude_setting`). Fields:
+
+    - ``time_step``: t [s], the period of the loop (the scenario's ``time_step``): the
+      command ``u2`` turns ``R(k)`` into ``R(k+1) = Exp(u2 t) R(k)``.
+    - ``baseline_B``: b (3) [m], the sonar baseline in the body frame (``sonar.baseline``),
+      the vector the paper's Algorithm 2 steers.
+    - ``noise_variances``: η1, η2 (2) [m²] of the two sonars' ranges
+      (``sonar.noise_variances``), and ``samples_per_step``: f, the range samples per sonar
+      and step (``sonar.samples_per_step``): the measurement noise a planner scores.
+    - ``acceleration_covariance``: W (3×3) [m²/s⁴] of the target's random walk
+      (``target.acceleration_covariance``): the process noise a planner propagates.
+    - ``estimator``: what the estimator updates with (the estimator section's
+      ``planning_model()``).
+    - ``tracking``: the tracking law's reference, q* if it turns with the body and its lag
+      (the tracking section's ``planning_model()``).
+
+    Arrays are stored read-only; a bad field raises ``ValueError`` naming it and its value.
+    """
+
+    time_step: float
+    baseline_B: np.ndarray
+    noise_variances: np.ndarray
+    samples_per_step: int
+    acceleration_covariance: np.ndarray
+    estimator: EstimatorPlanningModel
+    tracking: TrackingPlanningModel
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "time_step", time_step_field(self.time_step))
+        b = array_field("baseline_B", self.baseline_B, (3,))
+        if not b @ b > 0.0:
+            raise ValueError(f"baseline_B: must be a non-zero 3-vector, got {self.baseline_B!r}")
+        object.__setattr__(self, "baseline_B", b)
+        eta = array_field("noise_variances", self.noise_variances, (2,))
+        if not np.all(eta > 0.0):
+            raise ValueError(f"noise_variances: must be > 0, got {self.noise_variances!r}")
+        object.__setattr__(self, "noise_variances", eta)
+        f = self.samples_per_step
+        if isinstance(f, bool) or not isinstance(f, int) or f < 1:
+            raise ValueError(f"samples_per_step: must be an integer ≥ 1, got {f!r}")
+        W = array_field("acceleration_covariance", self.acceleration_covariance, (3, 3))
+        object.__setattr__(self, "acceleration_covariance", W)
+        for name, value, kind in (
+            ("estimator", self.estimator, EstimatorPlanningModel),
+            ("tracking", self.tracking, TrackingPlanningModel),
+        ):
+            if not isinstance(value, kind):
+                raise ValueError(f"{name}: must be a {kind.__name__}, got {value!r}")
 
 
 class AttitudeGenerator(LeafSystem):
@@ -22,7 +83,8 @@ class AttitudeGenerator(LeafSystem):
     ``R(k+1)`` otherwise.
 
     Subclasses override :meth:`desired_attitude` (and :meth:`next_desired_attitude`), and
-    may declare input ports of their own before calling :meth:`_declare_outputs`.
+    may declare input ports of their own before calling :meth:`_declare_outputs`; they take
+    the period from the slot's ``setting``.
 
     Common ports:
 
@@ -31,9 +93,9 @@ class AttitudeGenerator(LeafSystem):
     - output ``R_WB_plan`` (18): the planned ``R(k+1)`` and ``R(k+2)``, each row-major.
     """
 
-    def __init__(self, time_step: float, max_angular_rate: float | None = None) -> None:
+    def __init__(self, *, setting: AttitudeSetting, max_angular_rate: float | None = None) -> None:
         super().__init__()
-        self._time_step = float(time_step)
+        self._time_step = setting.time_step
         self._max_rate = max_angular_rate
         self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
 

@@ -3,8 +3,8 @@
 import numpy as np
 from pydrake.systems.framework import Context
 
-from drake_uuv.attitude.base import AttitudeGenerator
-from drake_uuv.scenario import Scenario
+from drake_uuv.attitude.base import AttitudeGenerator, AttitudeSetting
+from drake_uuv.scenario.attitude import FixedAttitude
 
 
 class FixedAttitudeGenerator(AttitudeGenerator):
@@ -19,17 +19,13 @@ class FixedAttitudeGenerator(AttitudeGenerator):
         - u2_W
         - R_WB_plan
 
-    Ports as in :class:`~drake_uuv.attitude.base.AttitudeGenerator`.
+    Ports as in :class:`~drake_uuv.attitude.base.AttitudeGenerator`. ``config``
+    (:class:`~drake_uuv.scenario.FixedAttitude`) has no parameters.
     """
 
-    def __init__(self, time_step: float) -> None:
-        super().__init__(time_step)
+    def __init__(self, config: FixedAttitude, *, setting: AttitudeSetting) -> None:
+        super().__init__(setting=setting)
         self._declare_outputs()
-
-    @classmethod
-    def from_scenario(cls, scenario: Scenario) -> "FixedAttitudeGenerator":
-        """The generator of ``scenario.attitude``."""
-        return cls(scenario.time_step)
 
     def desired_attitude(self, context: Context) -> np.ndarray | None:
         return None

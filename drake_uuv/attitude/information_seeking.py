@@ -10,14 +10,17 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
-from drake_uuv.models.information import InformationSeekingPlanner, PlanStep
-from drake_uuv.scenario import Scenario
+from drake_uuv.attitude.base import AttitudeSetting
+from drake_uuv.models.information import PlannedMeasurement
+from drake_uuv.models.information_planner import InformationSeekingPlanner, PlanStep
+from drake_uuv.scenario.attitude import InformationSeeking
 
 
 class InformationSeekingAttitude(LeafSystem):
     """``u2(k) = Log(R(k+1) R(k)ᵀ) / t`` with ``R(k+1)`` chosen by an information criterion.
 
-    Each step the :class:`~drake_uuv.models.information.InformationSeekingPlanner` scores the
+    Each step the :class:`~drake_uuv.models.information_planner.InformationSeekingPlanner`
+    (:attr:`planner`) scores the
     candidate attitudes within its rotation budget by the information the next measurement(s)
     would give the estimator, under the excitation floor and the optional reference limit,
     and this system commands the best one: ``R(k+1) = Exp(u2_W t) R(k)`` exactly (the plant's
@@ -34,7 +37,8 @@ class InformationSeekingAttitude(LeafSystem):
     produces ``u1_W``; a planner reading ``u1_W`` would close the loop through it). The
     planner's covariance propagation needs no control at all; where the planned-for model
     needs a relative position it assumes one without ``u1_W`` (see ``position_prediction`` in
-    :mod:`drake_uuv.models.information`). Only ports are read, never the estimator itself.
+    :mod:`drake_uuv.models.information_planner`). Only ports are read, never the estimator
+    itself.
 
     The plan ``R_WB_plan`` holds ``R(k+1)`` (exact) and a prediction of ``R(k+2)``: the
     planner run once more from ``R(k+1)``, the planner's own ``P(k+1|k+1)`` and the history
@@ -50,7 +54,8 @@ class InformationSeekingAttitude(LeafSystem):
     is needed for the beam.
 
     Discrete state, updated at the tick: group 0, the world baselines ``q_s`` of the last
-    ``N − 2`` steps up to k (oldest first, ``N = pe_window``) followed by how many are filled;
+    ``N − 2`` steps up to k (oldest first, ``N = excitation_window``) followed by how many are
+    filled;
     group 1, ``R(k)`` row-major followed by 1 once it is set (``R(k−1)`` for the next step's
     reference limit); group 2, 1 once a raw-range estimator has left its linear start (the
     planner's mirror of its hand-over, from ``P_TU``; the hand-over is one-way).
@@ -72,12 +77,21 @@ class InformationSeekingAttitude(LeafSystem):
     - ``P_TU`` (36): its covariance ``P(k|k)``, row-major.
     - ``u2_W`` (3): the angular velocity command [rad/s], world frame.
     - ``R_WB_plan`` (18): the planned ``R(k+1)`` and ``R(k+2)``, each row-major.
+
+    ``config`` (:class:`~drake_uuv.scenario.InformationSeeking`) gives the criterion, the
+    budget, the horizon, the excitation floor and the reference limit. The ``setting`` gives
+    the period, the sonars and the target's W, and what is planned for: the estimator's
+    measurement (the paper's ``Y`` for its KF, the raw ranges after a linear start the
+    planner mirrors for the others) and the tracking law's reference, ``R q*`` with q* in
+    the body frame (with q* fixed in the world or the heading there is none, and the
+    reference limit is off), lagging the attitude by a step unless the law feeds the plan
+    forward. ``position_prediction: auto`` plans at the reference for a raw-range estimator
+    tracking a body-frame q*, at the held position otherwise.
     """
 
-    def __init__(self, planner: InformationSeekingPlanner) -> None:
+    def __init__(self, config: InformationSeeking, *, setting: AttitudeSetting) -> None:
         super().__init__()
-        if not isinstance(planner, InformationSeekingPlanner):
-            raise ValueError(f"planner: must be an InformationSeekingPlanner, got {planner!r}")
+        planner = information_planner(config, setting)
         self._planner = planner
         self._time_step = planner.time_step
         self._history = planner.history_length
@@ -103,65 +117,9 @@ class InformationSeekingAttitude(LeafSystem):
         )
         self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
 
-    @classmethod
-    def from_scenario(cls, scenario: Scenario) -> "InformationSeekingAttitude":
-        """The planner of ``scenario.attitude`` (an :class:`~drake_uuv.scenario.
-        InformationSeeking`), planning for the scenario's estimator and tracking law.
-
-        The measurement it scores is the estimator's (``planning_model()``: the paper's Y
-        for ``!PaperKf``, the raw ranges for the others), and it mirrors a raw-range filter's
-        linear start (``linear_start_position_variance``, unless ``linear_start_max_steps``
-        is 0). The turning reference ``R q*`` is q* in the body frame (the paper's): with q*
-        fixed in the world or the heading there is none, and ``auto`` assumes a held
-        position; it lags the attitude by a step unless the LQR law feeds the plan forward.
-        """
-        a, e, tracking = scenario.attitude, scenario.estimator, scenario.tracking
-        model = e.planning_model()
-        measurement = model.measurement.value
-        body_reference = tracking.reference_frame == "body"
-        prediction = a.position_prediction
-        if prediction == "auto":
-            prediction = "reference" if measurement == "ranges" and body_reference else "hold"
-        linear_start = model.linear_start_position_variance
-        planner = InformationSeekingPlanner(
-            scenario.time_step,
-            np.asarray(scenario.sonar.baseline),
-            np.asarray(scenario.target.acceleration_covariance),
-            np.asarray(scenario.sonar.noise_variances),
-            scenario.sonar.samples_per_step,
-            measurement_model=measurement,
-            criterion=a.criterion,
-            block=a.block,
-            horizon=a.horizon,
-            max_angle_per_step=a.max_angle_per_step,
-            pe_window=scenario.analysis.pe_window,
-            excitation_floor=a.excitation_floor,
-            pe_lead=a.pe_lead,
-            desired_relative_position=(
-                np.asarray(tracking.desired_relative_position) if body_reference else None
-            ),
-            max_reference_acceleration=a.max_reference_acceleration if body_reference else None,
-            position_prediction=prediction,
-            reference_lag=0 if getattr(tracking, "feedforward", False) else 1,
-            linear_start_position_variance=linear_start,
-        )
-        return cls(planner)
-
     @property
     def planner(self) -> InformationSeekingPlanner:
         return self._planner
-
-    def history_state_index(self) -> int:
-        """The discrete-state group of the baseline history (see the class notes)."""
-        return self._history_index
-
-    def previous_attitude_state_index(self) -> int:
-        """The discrete-state group ``[R(k) row-major, set]``."""
-        return self._previous_index
-
-    def handed_over_state_index(self) -> int:
-        """The discrete-state group ``[1 once the raw-range filter left its linear start]``."""
-        return self._handed_over_index
 
     def _linear_start(self, context: Context, P: np.ndarray) -> bool:
         """Whether the estimator's update at k+1 is still its linear start's (mirrored)."""
@@ -221,3 +179,36 @@ class InformationSeekingAttitude(LeafSystem):
         discrete_state.set_value(
             self._handed_over_index, [0.0 if self._linear_start(context, P) else 1.0]
         )
+
+
+def information_planner(
+    config: InformationSeeking, setting: AttitudeSetting
+) -> InformationSeekingPlanner:
+    """The planner of ``config`` for the estimator and the tracking law of ``setting``."""
+    body_q_star = setting.tracking.desired_relative_position_B
+    ranges = setting.estimator.measurement == PlannedMeasurement.RANGES
+    prediction = config.position_prediction
+    if prediction == "auto":
+        prediction = "reference" if ranges and body_q_star is not None else "hold"
+    return InformationSeekingPlanner(
+        setting.time_step,
+        setting.baseline_B,
+        setting.acceleration_covariance,
+        setting.noise_variances,
+        setting.samples_per_step,
+        measurement_model=setting.estimator.measurement.value,
+        criterion=config.criterion,
+        block=config.block,
+        horizon=config.horizon,
+        max_angle_per_step=config.max_angle_per_step,
+        pe_window=config.excitation_window,
+        excitation_floor=config.excitation_floor,
+        pe_lead=config.pe_lead,
+        desired_relative_position=None if body_q_star is None else np.asarray(body_q_star),
+        max_reference_acceleration=(
+            None if body_q_star is None else config.max_reference_acceleration
+        ),
+        position_prediction=prediction,
+        reference_lag=setting.tracking.reference_lag,
+        linear_start_position_variance=setting.estimator.linear_start_position_variance,
+    )

@@ -4,10 +4,10 @@ import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Context
 
-from drake_uuv.attitude.base import AttitudeGenerator
+from drake_uuv.attitude.base import AttitudeGenerator, AttitudeSetting
 from drake_uuv.models.so3 import matrix_from_quaternion, norm
 from drake_uuv.primitives.random_input import declare_random_input
-from drake_uuv.scenario import Scenario
+from drake_uuv.scenario.attitude import RandomAttitude
 
 
 class RandomAttitudeGenerator(AttitudeGenerator):
@@ -30,19 +30,16 @@ class RandomAttitudeGenerator(AttitudeGenerator):
 
     - ``rotation_noise`` (4, random, standard normal): the quaternion before normalising.
     - The other ports as in :class:`~drake_uuv.attitude.base.AttitudeGenerator`.
+
+    ``config`` (:class:`~drake_uuv.scenario.RandomAttitude`) gives the rate limit.
     """
 
-    def __init__(self, time_step: float, max_angular_rate: float | None = None) -> None:
-        super().__init__(time_step, max_angular_rate)
+    def __init__(self, config: RandomAttitude, *, setting: AttitudeSetting) -> None:
+        super().__init__(setting=setting, max_angular_rate=config.max_angular_rate)
         self._noise_port = declare_random_input(
             self, "rotation_noise", 4, RandomDistribution.kGaussian
         )
         self._declare_outputs()
-
-    @classmethod
-    def from_scenario(cls, scenario: Scenario) -> "RandomAttitudeGenerator":
-        """The generator of ``scenario.attitude``."""
-        return cls(scenario.time_step, scenario.attitude.max_angular_rate)
 
     def desired_attitude(self, context: Context) -> np.ndarray | None:
         quaternion = self._noise_port.Eval(context)

@@ -5,9 +5,9 @@ import functools
 import numpy as np
 from pydrake.systems.framework import Context
 
-from drake_uuv.attitude.base import AttitudeGenerator
+from drake_uuv.attitude.base import AttitudeGenerator, AttitudeSetting
 from drake_uuv.models.attitude_plans import trajectory_attitude
-from drake_uuv.scenario import Scenario
+from drake_uuv.scenario.attitude import TrajectoryAttitude
 
 
 class TrajectoryAttitudeGenerator(AttitudeGenerator):
@@ -27,22 +27,15 @@ class TrajectoryAttitudeGenerator(AttitudeGenerator):
         - u2_W
         - R_WB_plan
 
-    Ports as in :class:`~drake_uuv.attitude.base.AttitudeGenerator`.
+    Ports as in :class:`~drake_uuv.attitude.base.AttitudeGenerator`. ``config``
+    (:class:`~drake_uuv.scenario.TrajectoryAttitude`) gives ρ, the h amplitude and frequency
+    and the rate limit; the ``setting`` the period and the baseline b.
     """
 
-    def __init__(
-        self,
-        time_step: float,
-        baseline_B: np.ndarray,
-        rho: float = 1.0 / 24.0,
-        h_amplitude: float = 0.5,
-        h_frequency: float = 1.0 / 6.0,
-        max_angular_rate: float | None = None,
-    ) -> None:
-        super().__init__(time_step, max_angular_rate)
-        b = np.asarray(baseline_B, dtype=float)
-        if b.shape != (3,) or not np.all(np.isfinite(b)) or not b @ b > 0.0:
-            raise ValueError(f"baseline_B: must be a non-zero finite 3-vector, got {baseline_B!r}")
+    def __init__(self, config: TrajectoryAttitude, *, setting: AttitudeSetting) -> None:
+        super().__init__(setting=setting, max_angular_rate=config.max_angular_rate)
+        b = setting.baseline_B
+        rho, h_amplitude, h_frequency = config.rho, config.h_amplitude, config.h_frequency
 
         # R̄(k) depends on k alone: every run of a Monte Carlo study reuses it.
         @functools.lru_cache(maxsize=4096)
@@ -51,19 +44,6 @@ class TrajectoryAttitudeGenerator(AttitudeGenerator):
 
         self._attitude = attitude
         self._declare_outputs()
-
-    @classmethod
-    def from_scenario(cls, scenario: Scenario) -> "TrajectoryAttitudeGenerator":
-        """The generator of ``scenario.attitude``."""
-        config = scenario.attitude
-        return cls(
-            scenario.time_step,
-            np.asarray(scenario.sonar.baseline),
-            config.rho,
-            config.h_amplitude,
-            config.h_frequency,
-            config.max_angular_rate,
-        )
 
     def desired_attitude(self, context: Context) -> np.ndarray | None:
         return self._attitude(self.step_index(context))

@@ -1,31 +1,9 @@
-"""The information of the next sonar measurement for a candidate attitude, and a planner on it.
+"""The information of the next sonar measurement for a candidate attitude, and its criteria.
 
-The paper closes by promising to turn the UUV "based on the target's motion to maximize
-observability"; its Algorithms 1 and 2 move the sonar baseline blindly. This module scores a
-candidate next attitude ``R(k+1)`` by what the next measurement(s) would tell the filter,
-and picks the best one that a rotation budget allows.
-
-Candidates: the cheapest rotations within the budget
-----------------------------------------------------
-The budget ``max_angle_per_step`` bounds the angle of ``R(k+1) R(k)ᵀ``. The two sonars see
-the target through the world baseline ``q_s = R b`` alone, so for a given target position
-two attitudes with the same ``R b`` measure the same; the cheapest rotation taking the
-baseline from direction ``u0`` to ``u`` is the minimal one (axis ``u0 × u``), whose angle is
-the angle between the directions. The sign of the baseline carries no information either
-(``Y`` changes sign, the two ranges swap), so every baseline *line* lies within π/2 of
-``±u0``: the candidates are the minimal rotations to a polar grid of the spherical cap of
-half-angle ``min(max_angle_per_step, π/2)`` about ``u0`` (:func:`cap_directions`; for one
-scalar measurement the optimum in a cap is the top eigenvector of the prior position
-covariance when the cap holds it, else a boundary point, which the grid's outer ring is).
-
-That holds while the target's position does not depend on the attitude. A tracking law
-that holds ``q = R q*`` turns the target with the body, and then the whole attitude matters:
-with ``position_prediction="reference"`` the candidates are all rotations of the budget's
-ball (:func:`ball_rotations`). It matters for the raw-range filters, whose strong
-information is along the line of sight ``R q*`` (range noise 0.1 m against a bearing across
-a 1.4 m baseline at 2.8 m); in the numpy Riccati loop below, baseline-only candidates gave the
-EKF's position 0.26 m at 0.39 rad per step against Algorithm 2's 0.234 m, whole-attitude
-candidates 0.173 m.
+What a planner assumes of the systems it plans for (:class:`EstimatorPlanningModel`,
+:class:`TrackingPlanningModel`), the measurement rows of each model, the posterior
+covariance they give and the criteria that score it; the planner on them is
+:mod:`drake_uuv.models.information_planner`.
 
 The information of one measurement
 ----------------------------------
@@ -39,24 +17,9 @@ The information of one measurement
   the two rows parallel (range only); one across it adds the bearing along the baseline.
   These filters start as the paper's KF on the sample means until ``trace P_qq`` falls to
   their hand-over threshold; the planner mirrors that from ``P_TU`` alone
-  (:meth:`InformationSeekingPlanner.hands_over`) and plans for ``Y`` (variances ``η/f``)
+  (``InformationSeekingPlanner.hands_over``) and plans for ``Y`` (variances ``η/f``)
   until then: planning for ranges during the start slowed it (it never ends when the KF's
   own covariance stays above the threshold, as at 0.1 rad per step).
-
-Both need a relative position at k+1. The filter's own prediction ``A x̂ + B u1_W`` is out
-of reach: ``u1_W`` comes from a tracking law that reads this planner's plan (an algebraic
-loop). ``position_prediction``:
-
-* ``"hold"`` (default): ``q̂(k|k)``: a tracking law holds the relative position;
-* ``"coast"``: ``q̂ + j t ϑ̂``, without the control that cancels ``ϑ̂`` (the paper's law drives
-  relative speeds of tens of m/s, so this can be metres off);
-* ``"reference"``: the tracking reference at the candidate's attitude,
-  ``R(k+j−reference_lag) q*``: ``reference_lag = 0`` for a law that lands on the next
-  reference (the LQR law with the plan's feed-forward), 1 for the paper's law, whose
-  ``u1(k)`` aims at ``R(k) q*``. With a lag the first measurement does not see the
-  candidate, so the horizon scored is at least ``1 + reference_lag``.
-
-The covariance needs no control at all.
 
 Criteria (higher is better), on a block of the posterior covariance ``P⁺``
 ---------------------------------------------------------------------------
@@ -73,63 +36,16 @@ on this block is that measure itself; and the block has one unit (m²), which A 
 (paper scenario, KF, target held at ``R q*``, 500 steps, ``√mean trace P_qq`` over k ≥ 200)
 A and D reach 0.56–0.58 m at 0.2 rad per step and 0.429 m at 0.39 (Algorithm 2: 0.589 m);
 E-optimal, which chases the worst direction only, 1.10 m and 0.67 m.
-
-Horizon
--------
-Over ``horizon = H`` steps the covariance is propagated with the known model
-(``P ← A P Aᵀ + Q``, ``Q = B W Bᵀ``) and updated with the measurement each step would give.
-A candidate is a motion primitive: its first step's rotation, repeated
-(``R(k+j) = Exp(j φ) R(k)``, each step within the budget). The score is the sum of the
-criterion over the H posteriors; ``H = 1`` is the greedy choice. For the KF, longer horizons
-did not help in the Riccati loop (0.429 m at H = 1, 0.432–0.464 m at H = 2–8 with
-A-optimality at 0.39 rad), nor did a greedy rollout as the horizon's base policy.
-
-Persistent excitation
----------------------
-The excitation Gramian ``Λ(k) = Σ_{m=k−N+1}^{k} q_s(m) q_s(m)ᵀ`` (paper eq. 10) must stay
-positive definite for the KF to be observable. Greedy information seeking does not keep a
-floor on it by itself: an unmeasured direction's variance grows until the planner turns
-back to it, but within a window it may not. At 0.1 rad per step the smallest eigenvalue over
-windows of 24 fell to 0.78 m² (A-optimal) and 0.089 m² (E-optimal) in the Riccati loop, and to
-0.10–0.12 m² for every criterion on random estimates. The planner therefore keeps a floor,
-``excitation_floor`` (default 1 m², i.e. ``N |b|² / 48``, a sixteenth of the isotropic
-``N |b|² / 3``): a candidate is admissible only when the trailing window ending with it, of
-``N − pe_lead`` steps, has ``λ_min ≥`` the floor (a window not yet full, at the start, its
-share of it). The shorter window meets a shortfall ``pe_lead`` steps before a full one would
-suffer it: turning the baseline a quarter-turn takes 16 steps at 0.1 rad. When no candidate
-is admissible the planner turns toward the least excited direction, maximising
-``x_cᵀ (Λ + εI)⁻¹ x_c``. So the first steps explore: while the window holds a few baselines
-close together its Gramian is nearly singular and no candidate meets even its share. With
-``pe_lead = 6`` the floor held in every window of 20 runs of 600 steps on random estimates
-at every budget from 0.1 to π/2 (smallest 1.11 m²); with ``pe_lead = 2`` it did not
-(0.52 m² at 0.1 rad). Below 0.1 rad per step it is not promised.
-
-Reference feasibility
----------------------
-The tracking reference ``r = R q*`` turns with the body, so a rotation of angle θ moves it by
-up to ``|q*| θ`` and its second difference, the acceleration a tracking law needs to follow
-it exactly, is at most ``|q*| (θ(k) + θ(k−1)) / t²``: 8.8 m/s² at 0.39 rad per step for the
-paper's ``|q*| = 2.83 m``, ``t = 0.5 s``, above a 7 m/s² limit, so feasibility is not automatic.
-With ``max_reference_acceleration`` a candidate is admissible only if
-``|R(k+1) q* − 2 R(k) q* + R(k−1) q*| / t² ≤`` that limit (if none is, the one needing the
-least is taken); this also bounds the feed-forward ``a_ff`` of the LQR law, built from the
-same differences of its plan. The limit takes precedence over the excitation floor.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
 
-from drake_uuv.models.measurement import (
-    MIN_RANGE,
-    range_difference_noise,
-)
-from drake_uuv.models.motion import double_integrator, process_noise_covariance
-from drake_uuv.models.so3 import exp_so3
+from drake_uuv.models.measurement import MIN_RANGE, range_difference_noise
 
 
 class PlannedMeasurement(StrEnum):
@@ -152,106 +68,25 @@ class EstimatorPlanningModel:
     linear_start_position_variance: float | None = None
 
 
+@dataclass(frozen=True)
+class TrackingPlanningModel:
+    """What a planner assumes of the tracking law it plans for.
+
+    ``desired_relative_position_B``: q* (3) [m] when it is fixed in the body frame, so that
+    the reference ``R q*`` turns with the attitude the planner chooses (None: q* fixed in
+    the world or the heading, which the attitude does not turn); ``reference_lag``: 0 for a
+    law whose ``u1(k)`` lands on the next reference ``R(k+1) q*`` (the plan fed forward), 1
+    for one that aims at ``R(k) q*``.
+    """
+
+    desired_relative_position_B: tuple[float, float, float] | None = None
+    reference_lag: int = 1
+
+
 MEASUREMENT_MODELS = tuple(m.value for m in PlannedMeasurement)
 CRITERIA = ("d_optimal", "a_optimal", "e_optimal")
 BLOCKS = ("position", "full")
 POSITION_PREDICTIONS = ("hold", "coast", "reference")
-
-_SMALL = 1e-12
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a × b`` along the last axis (broadcasting; ``np.cross`` costs several times more)."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
-def _frame(u0: np.ndarray) -> np.ndarray:
-    """A rotation whose third column is the unit vector ``u0`` (its first two complete it)."""
-    helper = np.eye(3)[int(np.argmin(np.abs(u0)))]
-    e1 = _unit(_cross(u0, helper))
-    return np.column_stack([e1, _cross(u0, e1), u0])
-
-
-def cap_directions(u0: np.ndarray, max_angle: float, rings: int = 6) -> np.ndarray:
-    """Unit directions of a polar grid of the cap of half-angle ``max_angle`` about ``u0``.
-
-    The first row is ``u0`` itself; ring ``j = 1..rings`` lies at the angle ``j·max_angle/rings``
-    from it with points spaced about ``max_angle/rings`` apart along the ring (at least 6), so
-    the outer ring is the cap's boundary, where a budget-limited optimum usually lies.
-    """
-    u0 = _unit(np.asarray(u0, dtype=float).reshape(3))
-    frame = _frame(u0)
-    e1, e2 = frame[:, 0], frame[:, 1]
-    spacing = max_angle / rings
-    rows = [u0[np.newaxis, :]]
-    for j in range(1, rings + 1):
-        alpha = j * spacing
-        count = max(6, math.ceil(2.0 * math.pi * math.sin(alpha) / spacing))
-        beta = 2.0 * math.pi * np.arange(count) / count
-        ring = (
-            math.cos(alpha) * u0
-            + math.sin(alpha) * np.cos(beta)[:, np.newaxis] * e1
-            + math.sin(alpha) * np.sin(beta)[:, np.newaxis] * e2
-        )
-        rows.append(ring)
-    return np.vstack(rows)
-
-
-def ball_rotations(max_angle: float, rings: int = 4) -> np.ndarray:
-    """Rotation vectors of a grid of the ball ``|φ| ≤ max_angle`` (n×3, the zero vector first).
-
-    Shell ``j = 1..rings`` has radius ``j·max_angle/rings`` and about ``4π j²`` points (at
-    least 8) of a Fibonacci sphere, so neighbours are about ``max_angle/rings`` apart; the
-    outer shell is the budget's boundary.
-    """
-    golden = math.pi * (3.0 - math.sqrt(5.0))
-    rows = [np.zeros((1, 3))]
-    for j in range(1, rings + 1):
-        count = max(8, round(4.0 * math.pi * j * j))
-        i = np.arange(count) + 0.5
-        z = 1.0 - 2.0 * i / count
-        radius = np.sqrt(1.0 - z * z)
-        azimuth = golden * i + j  # a different twist per shell: no shell-to-shell alignment
-        shell = np.stack([radius * np.cos(azimuth), radius * np.sin(azimuth), z], axis=1)
-        rows.append(shell * (j * max_angle / rings))
-    return np.vstack(rows)
-
-
-def minimal_rotation_vectors(u0: np.ndarray, directions: np.ndarray) -> np.ndarray:
-    """Rotation vectors (axis × angle) of the minimal rotations taking ``u0`` to each direction.
-
-    ``u0`` and ``directions`` (n×3) are unit vectors at less than π from each other (the
-    planner's cap is at most π/2); a direction equal to ``u0`` gives the zero vector.
-    """
-    cross = _cross(u0, directions)
-    sin_angle = np.linalg.norm(cross, axis=1)
-    angle = np.arctan2(sin_angle, directions @ u0)
-    scale = np.where(sin_angle > _SMALL, angle / np.maximum(sin_angle, _SMALL), 1.0)
-    return cross * scale[:, np.newaxis]
-
-
-def rotate_vectors(rotation_vectors: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``Exp(φ_i) v`` for each rotation vector ``φ_i`` (n×3) and one vector ``v`` (Rodrigues)."""
-    angle = np.linalg.norm(rotation_vectors, axis=1)
-    axis = rotation_vectors / np.maximum(angle, _SMALL)[:, np.newaxis]
-    cos, sin = np.cos(angle)[:, np.newaxis], np.sin(angle)[:, np.newaxis]
-    return v * cos + _cross(axis, v) * sin + axis * (axis @ v)[:, np.newaxis] * (1.0 - cos)
-
-
-def rotation_angles(R: np.ndarray) -> np.ndarray:
-    """The angle of ``R(k+1) R(k)ᵀ`` for each step of a sequence of rotations (n×3×3 → n−1)."""
-    relative = np.einsum("kij,kil->kjl", R[1:], R[:-1])  # R(k+1)ᵀ R(k): same angle
-    cos = (np.trace(relative, axis1=1, axis2=2) - 1.0) / 2.0
-    # arccos loses precision near 0; the skew part gives sin exactly enough.
-    skew = relative - np.transpose(relative, (0, 2, 1))
-    sin = 0.5 * np.sqrt(0.5 * np.sum(skew * skew, axis=(1, 2)))
-    return np.arctan2(sin, cos)
 
 
 def range_difference_rows(
@@ -337,335 +172,3 @@ def smallest_excitation_eigenvalues(gramian: np.ndarray, baselines: np.ndarray) 
     """``λ_min(Λ + q_s q_sᵀ)`` for a Gramian ``Λ`` (3×3) and each candidate baseline (n×3)."""
     total = gramian + baselines[:, :, np.newaxis] * baselines[:, np.newaxis, :]
     return np.linalg.eigvalsh(total)[:, 0]
-
-
-@dataclass(frozen=True)
-class PlanStep:
-    """One planning step: the chosen rotation and what it was chosen on.
-
-    ``rotation_vector`` is ``Log(R(k+1) R(k)ᵀ)``; ``R_next`` is ``R(k+1)``; ``baseline`` the
-    world baseline ``R(k+1) b``; ``P_next`` the planner's ``P(k+1|k+1)`` for that choice;
-    ``score`` its criterion; ``excitation`` the smallest eigenvalue of the trailing planning
-    window ending with it (NaN without a floor); ``reference_acceleration``
-    ``|Δ² (R q*)| / t²`` (NaN without a reference limit or before two attitudes are known).
-    """
-
-    rotation_vector: np.ndarray
-    R_next: np.ndarray
-    baseline: np.ndarray
-    P_next: np.ndarray
-    score: float
-    excitation: float
-    reference_acceleration: float
-
-
-class InformationSeekingPlanner:
-    """Chooses the next attitude ``R(k+1)`` that makes the next measurements most informative.
-
-    See the module notes for the model, the criteria, the horizon, the excitation floor and
-    the reference limit. :meth:`plan` is a pure function of its arguments: the same inputs
-    give the same choice.
-
-    Parameters: ``time_step`` t [s]; ``baseline_B`` b (3) [m]; ``acceleration_covariance`` W
-    (3×3) of the target [m²/s⁴]; ``noise_variances`` η (2) [m²]; ``samples_per_step`` f;
-    ``measurement_model`` (``range_difference`` for the paper's KF, ``ranges`` for the
-    raw-range filters); ``criterion``; ``block``; ``horizon`` H ≥ 1; ``max_angle_per_step``
-    [rad]; ``pe_window`` N; ``excitation_floor`` [m²] (0 switches the floor off);
-    ``pe_lead`` (the floor is enforced on the trailing ``N − pe_lead`` steps);
-    ``desired_relative_position`` q* (3, body frame) and ``max_reference_acceleration``
-    [m/s²] (None: no limit); ``position_prediction`` and ``reference_lag`` (0 or 1);
-    ``linear_start_position_variance`` [m²], the raw-range filter's hand-over threshold (None:
-    it has no linear start; ignored for ``range_difference``);
-    ``grid_rings`` of the cap grid and ``ball_rings`` of the ball grid.
-    ``max_angle_per_step`` defaults to 0.39 rad, about Algorithm 2's mean rotation per step
-    in the paper scenario (0.381 rad over 500 steps).
-    """
-
-    def __init__(
-        self,
-        time_step: float,
-        baseline_B: np.ndarray,
-        acceleration_covariance: np.ndarray,
-        noise_variances: np.ndarray,
-        samples_per_step: int = 1,
-        measurement_model: str = "range_difference",
-        criterion: str = "a_optimal",
-        block: str = "position",
-        horizon: int = 1,
-        max_angle_per_step: float = 0.39,
-        pe_window: int = 24,
-        excitation_floor: float = 1.0,
-        pe_lead: int = 6,
-        desired_relative_position: np.ndarray | None = None,
-        max_reference_acceleration: float | None = None,
-        position_prediction: str = "hold",
-        reference_lag: int = 0,
-        linear_start_position_variance: float | None = None,
-        grid_rings: int = 6,
-        ball_rings: int = 4,
-    ) -> None:
-        if not (math.isfinite(time_step) and time_step > 0.0):
-            raise ValueError(f"time_step: must be > 0, got {time_step!r}")
-        b = np.asarray(baseline_B, dtype=float)
-        if b.shape != (3,) or not np.all(np.isfinite(b)) or np.linalg.norm(b) < 1e-9:
-            raise ValueError(f"baseline_B: must be a finite non-zero 3-vector, got {baseline_B!r}")
-        W = np.asarray(acceleration_covariance, dtype=float)
-        if W.shape != (3, 3) or not np.all(np.isfinite(W)):
-            raise ValueError(
-                f"acceleration_covariance: must be a finite 3×3 matrix, got {W.tolist()!r}"
-            )
-        eta = np.asarray(noise_variances, dtype=float)
-        if eta.shape != (2,) or not np.all(eta > 0.0) or not np.all(np.isfinite(eta)):
-            raise ValueError(f"noise_variances: must be two numbers > 0, got {noise_variances!r}")
-        if int(samples_per_step) != samples_per_step or samples_per_step < 1:
-            raise ValueError(f"samples_per_step: must be an integer ≥ 1, got {samples_per_step!r}")
-        for name, value, options in (
-            ("measurement_model", measurement_model, MEASUREMENT_MODELS),
-            ("criterion", criterion, CRITERIA),
-            ("block", block, BLOCKS),
-            ("position_prediction", position_prediction, POSITION_PREDICTIONS),
-        ):
-            if value not in options:
-                raise ValueError(f"{name}: must be one of {', '.join(options)}, got {value!r}")
-        if int(horizon) != horizon or horizon < 1:
-            raise ValueError(f"horizon: must be an integer ≥ 1, got {horizon!r}")
-        if not (math.isfinite(max_angle_per_step) and 0.0 < max_angle_per_step <= math.pi):
-            raise ValueError(f"max_angle_per_step: must be in (0, π], got {max_angle_per_step!r}")
-        if int(pe_window) != pe_window or pe_window < 3:
-            raise ValueError(f"pe_window: must be an integer ≥ 3, got {pe_window!r}")
-        if not (math.isfinite(excitation_floor) and excitation_floor >= 0.0):
-            raise ValueError(f"excitation_floor: must be ≥ 0, got {excitation_floor!r}")
-        if int(pe_lead) != pe_lead or not 0 <= pe_lead <= pe_window - 3:
-            raise ValueError(f"pe_lead: must be an integer in [0, pe_window − 3], got {pe_lead!r}")
-        if max_reference_acceleration is not None:
-            if not (math.isfinite(max_reference_acceleration) and max_reference_acceleration > 0):
-                raise ValueError(
-                    f"max_reference_acceleration: must be > 0 or None, got "
-                    f"{max_reference_acceleration!r}"
-                )
-            if desired_relative_position is None:
-                raise ValueError(
-                    "desired_relative_position: needed with max_reference_acceleration, got None"
-                )
-        if desired_relative_position is not None:
-            q_star = np.asarray(desired_relative_position, dtype=float)
-            if q_star.shape != (3,) or not np.all(np.isfinite(q_star)):
-                raise ValueError(
-                    "desired_relative_position: must be a finite 3-vector, got "
-                    f"{desired_relative_position!r}"
-                )
-        if position_prediction == "reference" and desired_relative_position is None:
-            raise ValueError(
-                "desired_relative_position: needed with position_prediction='reference', got None"
-            )
-        if linear_start_position_variance is not None and not (
-            math.isfinite(linear_start_position_variance) and linear_start_position_variance > 0
-        ):
-            raise ValueError(
-                "linear_start_position_variance: must be > 0 or None, got "
-                f"{linear_start_position_variance!r}"
-            )
-        if reference_lag not in (0, 1):
-            raise ValueError(f"reference_lag: must be 0 or 1, got {reference_lag!r}")
-        for name, value in (("grid_rings", grid_rings), ("ball_rings", ball_rings)):
-            if int(value) != value or value < 1:
-                raise ValueError(f"{name}: must be an integer ≥ 1, got {value!r}")
-
-        self.time_step = float(time_step)
-        self.baseline_B = b
-        self.baseline_norm = float(np.linalg.norm(b))
-        self.noise_variances = eta
-        self.samples_per_step = int(samples_per_step)
-        self.measurement_model = measurement_model
-        self.criterion = criterion
-        self.block = block
-        self.horizon = int(horizon)
-        self.max_angle_per_step = float(max_angle_per_step)
-        # Any baseline line is within π/2 of ±u0 (module notes): a larger cap repeats lines.
-        self.cap_angle = min(self.max_angle_per_step, 0.5 * math.pi)
-        self.pe_window = int(pe_window)
-        self.excitation_floor = float(excitation_floor)
-        self.pe_lead = int(pe_lead)
-        self.q_star = (
-            None
-            if desired_relative_position is None
-            else np.asarray(desired_relative_position, dtype=float)
-        )
-        self.max_reference_acceleration = max_reference_acceleration
-        self.position_prediction = position_prediction
-        self.reference_lag = int(reference_lag)
-        self.linear_start_position_variance = (
-            None
-            if measurement_model != "ranges" or linear_start_position_variance is None
-            else float(linear_start_position_variance)
-        )
-        # With a lagged reference the first measurement does not see the candidate's twist.
-        self.scored_horizon = (
-            max(self.horizon, 1 + self.reference_lag)
-            if position_prediction == "reference"
-            else self.horizon
-        )
-        self.grid_rings = int(grid_rings)
-        self.ball_rings = int(ball_rings)
-        self.A, _ = double_integrator(self.time_step)
-        self.Q = process_noise_covariance(W, self.time_step)
-        # The candidate grids, computed once: the cap about +z (turned onto the baseline's
-        # direction each step: rotation vectors turn as vectors) and the ball.
-        z = np.array([0.0, 0.0, 1.0])
-        self._cap_rotations_z = minimal_rotation_vectors(
-            z, cap_directions(z, self.cap_angle, self.grid_rings)
-        )
-        self._ball = ball_rotations(self.max_angle_per_step, self.ball_rings)
-
-    @property
-    def history_length(self) -> int:
-        """How many past baselines (before the current one) :meth:`plan` uses: ``N − 2``."""
-        return self.pe_window - 2
-
-    def predict_covariance(self, P: np.ndarray) -> np.ndarray:
-        """``A P Aᵀ + Q`` (one or a stack of 6×6)."""
-        return np.matmul(np.matmul(self.A, P), self.A.T) + self.Q
-
-    def measurement_rows(
-        self, q: np.ndarray, baselines: np.ndarray, linear_start: bool = False
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """``(H, R)`` of the planned-for measurement model at position ``q`` per baseline.
-
-        ``linear_start``: the raw-range filter's start, the paper's ``Y`` formed from the
-        per-sonar sample means (noise variances ``η/f``).
-        """
-        if self.measurement_model == "range_difference":
-            return range_difference_rows(q, baselines, self.noise_variances)
-        if linear_start:
-            return range_difference_rows(q, baselines, self.noise_variances / self.samples_per_step)
-        return range_rows(q, baselines, self.noise_variances, self.samples_per_step)
-
-    def hands_over(self, P: np.ndarray) -> bool:
-        """Whether a raw-range filter whose filtered covariance is ``P`` leaves its linear
-        start (``trace P_qq ≤ linear_start_position_variance``), as its hand-over policy does."""
-        threshold = self.linear_start_position_variance
-        return threshold is None or float(np.trace(np.asarray(P)[:3, :3])) <= threshold
-
-    def predicted_positions(
-        self, j: int, x_hat: np.ndarray, rotation: np.ndarray, R_WB: np.ndarray
-    ) -> np.ndarray:
-        """The relative position assumed at step k+j for each candidate (n×3 or 3).
-
-        ``rotation`` (n×3) holds the candidates' per-step rotation vectors, ``R_WB`` is
-        ``R(k)``. See :attr:`position_prediction` in the module notes.
-        """
-        if self.position_prediction == "hold":
-            return x_hat[:3]
-        if self.position_prediction == "coast":
-            return x_hat[:3] + j * self.time_step * x_hat[3:]
-        steps = max(j - self.reference_lag, 0)
-        return rotate_vectors(steps * rotation, R_WB @ self.q_star)
-
-    def candidate_rotations(self, R_WB: np.ndarray) -> np.ndarray:
-        """The candidate rotation vectors ``Log(R(k+1) R(k)ᵀ)`` (n×3, the zero vector first).
-
-        With ``position_prediction="reference"`` the target's assumed position ``R q*`` turns
-        with the whole body, so every rotation within the budget is a candidate
-        (:func:`ball_rotations`); otherwise only the baseline's direction matters and the
-        cheapest rotation to each direction of the cap is the minimal one.
-        """
-        if self.position_prediction == "reference":
-            return self._ball
-        return self._cap_rotations_z @ _frame(R_WB @ self.baseline_B / self.baseline_norm).T
-
-    def horizon_scores(
-        self,
-        x_hat: np.ndarray,
-        P: np.ndarray,
-        R_WB: np.ndarray,
-        rotation: np.ndarray,
-        linear_start: bool = False,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Summed criterion over the horizon, and ``P(k+1|k+1)``, for each candidate.
-
-        ``x_hat``, ``P`` are the filtered ``x̂(k|k)``, ``P(k|k)``; ``R_WB`` is ``R(k)``;
-        ``rotation`` (n×3) the candidates' rotation vectors, each repeated every step of the
-        horizon (``R(k+j) = Exp(j φ) R(k)``); ``linear_start`` as in :meth:`measurement_rows`,
-        for the whole horizon.
-        """
-        baseline = R_WB @ self.baseline_B
-        x_hat = np.asarray(x_hat, dtype=float)
-        scores = np.zeros(len(rotation))
-        posterior = np.asarray(P, dtype=float)
-        first = posterior
-        for j in range(1, self.scored_horizon + 1):
-            q = self.predicted_positions(j, x_hat, rotation, R_WB)
-            H, R = self.measurement_rows(q, rotate_vectors(j * rotation, baseline), linear_start)
-            posterior = posterior_covariances(self.predict_covariance(posterior), H, R)
-            if j == 1:
-                first = posterior
-            scores += criterion_values(posterior, self.criterion, self.block)
-        return scores, first
-
-    def plan(
-        self,
-        x_hat: np.ndarray,
-        P: np.ndarray,
-        R_WB: np.ndarray,
-        previous_baselines: np.ndarray,
-        R_previous: np.ndarray | None = None,
-        linear_start: bool = False,
-    ) -> PlanStep:
-        """The next attitude from the filtered estimate at step k.
-
-        ``x_hat`` (6) and ``P`` (6×6) are ``x̂(k|k)``, ``P(k|k)``; ``R_WB`` is ``R(k)``;
-        ``previous_baselines`` (m×3, oldest first, at most :attr:`history_length` used) are the
-        world baselines ``q_s`` of the steps before k; ``R_previous`` is ``R(k−1)`` (None at
-        the first step), used only for the reference limit; ``linear_start`` says that the
-        raw-range filter's next update is still its linear start's (see :meth:`hands_over`).
-        """
-        R_WB = np.asarray(R_WB, dtype=float).reshape(3, 3)
-        baseline = R_WB @ self.baseline_B
-        rotation = self.candidate_rotations(R_WB)
-        baselines = rotate_vectors(rotation, baseline)
-        scores, posteriors = self.horizon_scores(x_hat, P, R_WB, rotation, linear_start)
-        admissible = np.ones(len(rotation), dtype=bool)
-        objective = scores
-
-        reference_acceleration = np.full(len(rotation), np.nan)
-        if self.max_reference_acceleration is not None and R_previous is not None:
-            r_now = R_WB @ self.q_star
-            r_previous = np.asarray(R_previous, dtype=float).reshape(3, 3) @ self.q_star
-            second_difference = rotate_vectors(rotation, r_now) - 2.0 * r_now + r_previous
-            reference_acceleration = np.linalg.norm(second_difference, axis=1) / self.time_step**2
-            admissible = reference_acceleration <= self.max_reference_acceleration
-            if not admissible.any():  # the least demanding candidate
-                admissible = reference_acceleration <= reference_acceleration.min()
-
-        excitation = np.full(len(rotation), np.nan)
-        if self.excitation_floor > 0.0:
-            history = np.asarray(previous_baselines, dtype=float).reshape(-1, 3)
-            window = self.pe_window - self.pe_lead  # steps of the trailing planning window
-            recent = history[max(len(history) - (window - 2), 0) :]
-            # A window not yet full must hold its share of the floor, so that the first full
-            # windows (which include the start) meet it too.
-            required = self.excitation_floor * min((len(recent) + 2) / window, 1.0)
-            gramian = recent.T @ recent + np.outer(baseline, baseline)
-            excitation = smallest_excitation_eigenvalues(gramian, baselines)
-            enough = admissible & (excitation >= required)
-            if enough.any():
-                admissible = enough
-            else:
-                # Turn toward the least excited direction: the most novel baseline in the
-                # Gramian's metric, x_cᵀ (Λ + εI)⁻¹ x_c, defined (unlike λ_min, which is 0 for
-                # every candidate while Λ has rank 1) from the first step on.
-                epsilon = 1e-3 * self.baseline_norm**2
-                weighted = np.linalg.solve(gramian + epsilon * np.eye(3), baselines.T).T
-                objective = np.einsum("ij,ij->i", baselines, weighted)
-
-        index = int(np.flatnonzero(admissible)[np.argmax(objective[admissible])])
-        R_next = exp_so3(rotation[index]) @ R_WB
-        return PlanStep(
-            rotation_vector=rotation[index].copy(),
-            R_next=R_next,
-            baseline=R_next @ self.baseline_B,
-            P_next=posteriors[index],
-            score=float(scores[index]),
-            excitation=float(excitation[index]),
-            reference_acceleration=float(reference_acceleration[index]),
-        )

@@ -8,12 +8,22 @@ body origin U, midpoint of the sonars, in the world [m, m/s]) and ``R_WB`` (row-
 state at the time of the context. A plant may output more (a real vehicle's thrusts); it
 then lists those outputs in an ``extra_signals`` attribute so the run logs them, and a plant
 with continuous state may set up the simulator's integrator in a ``configure_simulator``
-method. See :mod:`drake_uuv.signals`.
+method. See :mod:`drake_uuv.signals`. Each vehicle is built as
+``cls(config, setting=PlantSetting(...))`` (:class:`~drake_uuv.plants.base.PlantSetting`); the
+target as ``TargetRandomWalk(config, time_step=t)``.
 """
 
-from drake_uuv.plants.factory import make_plant
+from drake_uuv.plants.base import PlantSetting
+from drake_uuv.plants.factory import make_plant, plant_setting
 from drake_uuv.plants.hovering_auv import HoveringAuvPlant
 from drake_uuv.plants.kinematic_uuv import KinematicUuvPlant
 from drake_uuv.plants.target_random_walk import TargetRandomWalk
 
-__all__ = ["HoveringAuvPlant", "KinematicUuvPlant", "TargetRandomWalk", "make_plant"]
+__all__ = [
+    "HoveringAuvPlant",
+    "KinematicUuvPlant",
+    "PlantSetting",
+    "TargetRandomWalk",
+    "make_plant",
+    "plant_setting",
+]

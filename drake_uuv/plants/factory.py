@@ -1,21 +1,36 @@
 """The plant slot's factory: the system of each variant of ``scenario.plant``."""
 
-from collections.abc import Callable
-
+import numpy as np
+from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import System
 
+from drake_uuv.plants.base import PlantSetting
 from drake_uuv.plants.hovering_auv import HoveringAuvPlant
 from drake_uuv.plants.kinematic_uuv import KinematicUuvPlant
-from drake_uuv.primitives.variant_table import build_variant
+from drake_uuv.primitives.variant_table import variant_system
 from drake_uuv.scenario import HoveringAuv, KinematicUuv, Scenario
 
-#: Variant dataclass → the constructor of its system from a scenario.
-PLANTS: dict[type, Callable[[Scenario], System]] = {
-    KinematicUuv: KinematicUuvPlant.from_scenario,
-    HoveringAuv: HoveringAuvPlant.from_scenario,
+#: Variant dataclass → its system, built as ``cls(config, setting=PlantSetting(...))``.
+PLANTS: dict[type, type[System]] = {
+    KinematicUuv: KinematicUuvPlant,
+    HoveringAuv: HoveringAuvPlant,
 }
+
+
+def plant_setting(scenario: Scenario) -> PlantSetting:
+    """What a plant gets from ``scenario``: its period and ``scenario.uuv``'s initial state."""
+    uuv = scenario.uuv
+    return PlantSetting(
+        time_step=scenario.time_step,
+        initial_position=uuv.initial_position,
+        initial_velocity=uuv.initial_velocity,
+        initial_R_WB=RotationMatrix(
+            RollPitchYaw(np.asarray(uuv.initial_rpy, dtype=float))
+        ).matrix(),
+    )
 
 
 def make_plant(scenario: Scenario) -> System:
     """The vehicle of ``scenario.plant``'s variant, at ``scenario.uuv``'s initial state."""
-    return build_variant(PLANTS, scenario, "plant")
+    cls = variant_system(PLANTS, scenario.plant, "plant")
+    return cls(scenario.plant, setting=plant_setting(scenario))

@@ -1,16 +1,12 @@
 """The 8-thruster hovering UUV and its low-level controller, as one plant for the outer loop."""
 
-import math
-
-import numpy as np
-from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
+from drake_uuv.plants.base import PlantSetting
 from drake_uuv.plants.low_level_controller import LowLevelController
 from drake_uuv.plants.marine_vehicle import MarineVehicle
 from drake_uuv.primitives.signal import Signal
-from drake_uuv.scenario import Scenario
 from drake_uuv.scenario.plants import HoveringAuv
 
 __all__ = ["HoveringAuvPlant", "configure_simulator"]
@@ -86,9 +82,11 @@ class HoveringAuvPlant(Diagram):
     - ``saturation_ticks`` (4): fast ticks so far, and those with the force, the moment, or
       either scaled down by saturation.
 
-    Simulate with :func:`configure_simulator` (in the closed loop, the simulation calls this
-    plant's :meth:`configure_simulator`). :data:`extra_signals` are logged with the closed
-    loop's signals.
+    ``config`` (:class:`~drake_uuv.scenario.HoveringAuv`) is the vehicle, its thrusters and
+    its controller; the ``setting`` gives the outer period and the initial state (at rest in
+    rotation). Simulate with :func:`configure_simulator` (in the closed loop, the simulation
+    calls this plant's :meth:`configure_simulator`). :data:`extra_signals` are logged with
+    the closed loop's signals.
     """
 
     #: The outputs beyond the plant contract that a run logs (once per outer step).
@@ -101,34 +99,23 @@ class HoveringAuvPlant(Diagram):
         Signal("saturation_ticks", "uuv", (4,), "fast ticks; with force, moment, either scaled"),
     )
 
-    def __init__(
-        self,
-        config: HoveringAuv,
-        time_step: float,
-        initial_position: np.ndarray,
-        initial_velocity: np.ndarray,
-        initial_rpy: np.ndarray,
-    ) -> None:
+    def __init__(self, config: HoveringAuv, *, setting: PlantSetting) -> None:
         super().__init__()
         config.validate("config")
-        if not (math.isfinite(time_step) and time_step > 0.0):
-            raise ValueError(f"time_step: must be > 0, got {time_step!r}")
-        rpy = np.asarray(initial_rpy, dtype=float)
-        if rpy.shape != (3,) or not np.all(np.isfinite(rpy)):
-            raise ValueError(f"initial_rpy: must be 3 finite numbers, got {initial_rpy!r}")
-        R0 = RotationMatrix(RollPitchYaw(rpy)).matrix()
+        R0 = setting.initial_R_WB
         builder = DiagramBuilder()
         vehicle = builder.AddNamedSystem(
             "vehicle",
             MarineVehicle(
                 config,
-                np.asarray(initial_position, dtype=float),
-                np.asarray(initial_velocity, dtype=float),
-                R0,
+                initial_position=setting.initial_position,
+                initial_velocity=setting.initial_velocity,
+                initial_R_WB=R0,
             ),
         )
         controller = builder.AddNamedSystem(
-            "low_level_controller", LowLevelController(config, time_step, R0)
+            "low_level_controller",
+            LowLevelController(config, outer_period=setting.time_step, initial_R_WB=R0),
         )
         builder.Connect(controller.GetOutputPort("thrust_command"), vehicle.get_input_port())
         for name in ("R_WB", "nu_B"):
@@ -149,19 +136,7 @@ class HoveringAuvPlant(Diagram):
             builder.ExportOutput(controller.GetOutputPort(name), name)
         builder.BuildInto(self)
         self._vehicle, self._controller = vehicle, controller
-        self._config, self._time_step = config, float(time_step)
-
-    @classmethod
-    def from_scenario(cls, scenario: Scenario) -> "HoveringAuvPlant":
-        """The vehicle of ``scenario.plant`` (a :class:`~drake_uuv.scenario.HoveringAuv`) at
-        ``scenario.uuv``'s initial state."""
-        return cls(
-            scenario.plant,
-            scenario.time_step,
-            np.asarray(scenario.uuv.initial_position),
-            np.asarray(scenario.uuv.initial_velocity),
-            np.asarray(scenario.uuv.initial_rpy),
-        )
+        self._config, self._time_step = config, setting.time_step
 
     def configure_simulator(self, simulator: Simulator) -> None:
         """The integrator this vehicle needs (:func:`configure_simulator`)."""

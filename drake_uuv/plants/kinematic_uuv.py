@@ -1,14 +1,11 @@
 """The UUV of the paper: a discrete double integrator with a rotating attitude, eqs. (1)–(2)."""
 
-from typing import Self
-
-import numpy as np
-from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from drake_uuv.models.motion import double_integrator_step
 from drake_uuv.models.so3 import exp_so3
-from drake_uuv.scenario import Scenario
+from drake_uuv.plants.base import PlantSetting
+from drake_uuv.scenario.plants import KinematicUuv
 
 
 class KinematicUuvPlant(LeafSystem):
@@ -39,37 +36,23 @@ class KinematicUuvPlant(LeafSystem):
     - ``p_WU``, ``v_WU`` (3 each): position and velocity of the vehicle's body origin U (the
       midpoint of the sonars) in the world [m, m/s].
     - ``R_WB`` (9): attitude ``R`` (body to world), row-major.
+
+    ``config`` (:class:`~drake_uuv.scenario.KinematicUuv`) has no parameters; the period and
+    the initial state are the ``setting``'s.
     """
 
-    def __init__(
-        self,
-        time_step: float,
-        initial_position: np.ndarray,
-        initial_velocity: np.ndarray,
-        initial_R_WB: np.ndarray,
-    ) -> None:
+    def __init__(self, config: KinematicUuv, *, setting: PlantSetting) -> None:
         super().__init__()
-        self._time_step = float(time_step)
+        self._time_step = setting.time_step
         self._u1_port = self.DeclareVectorInputPort("u1_B", 3)
         self._u2_port = self.DeclareVectorInputPort("u2_W", 3)
-        self._p_index = self.DeclareDiscreteState(np.asarray(initial_position, dtype=float))
-        self._v_index = self.DeclareDiscreteState(np.asarray(initial_velocity, dtype=float))
-        self._R_index = self.DeclareDiscreteState(np.asarray(initial_R_WB, dtype=float).ravel())
+        self._p_index = self.DeclareDiscreteState(setting.initial_position)
+        self._v_index = self.DeclareDiscreteState(setting.initial_velocity)
+        self._R_index = self.DeclareDiscreteState(setting.initial_R_WB.ravel())
         self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
         self.DeclareStateOutputPort("p_WU", self._p_index)
         self.DeclareStateOutputPort("v_WU", self._v_index)
         self.DeclareStateOutputPort("R_WB", self._R_index)
-
-    @classmethod
-    def from_scenario(cls, scenario: Scenario) -> Self:
-        """The paper's vehicle at ``scenario.uuv``'s initial state."""
-        rpy = RollPitchYaw(np.asarray(scenario.uuv.initial_rpy, dtype=float))
-        return cls(
-            scenario.time_step,
-            np.asarray(scenario.uuv.initial_position),
-            np.asarray(scenario.uuv.initial_velocity),
-            RotationMatrix(rpy).matrix(),
-        )
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         state = context.get_discrete_state()

@@ -88,7 +88,9 @@ class LowLevelController(LeafSystem):
       force, moment, or either, the allocation scaled down (the fraction of time saturated).
     """
 
-    def __init__(self, config: HoveringAuv, outer_period: float, initial_R_WB: np.ndarray) -> None:
+    def __init__(
+        self, config: HoveringAuv, *, outer_period: float, initial_R_WB: np.ndarray
+    ) -> None:
         super().__init__()
         config.validate("config")
         if not (math.isfinite(outer_period) and outer_period > 0.0):

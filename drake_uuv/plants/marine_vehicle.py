@@ -57,6 +57,7 @@ class MarineVehicle(LeafSystem):
     def __init__(
         self,
         config: HoveringAuv,
+        *,
         initial_position: np.ndarray,
         initial_velocity: np.ndarray,
         initial_R_WB: np.ndarray,

@@ -6,14 +6,19 @@ from typing import Any, TypeVar
 S = TypeVar("S")
 
 
-def build_variant(table: dict[type, Callable[[Any], S]], scenario: Any, slot: str) -> S:
-    """``table[type(scenario.<slot>)](scenario)``: the system of the slot's variant.
+def variant_system(table: dict[type, S], config: object, slot: str) -> S:
+    """``table[type(config)]``: the entry of the slot's variant ``config``.
 
     A variant with no entry (its dataclass added to the scenario, its line to the factory's
     table forgotten) raises ``TypeError`` naming the slot and the tag.
     """
-    config = getattr(scenario, slot)
-    make = table.get(type(config))
-    if make is None:
+    entry = table.get(type(config))
+    if entry is None:
         raise TypeError(f"{slot}: no system for !{type(config).__name__} in the slot's factory")
-    return make(scenario)
+    return entry
+
+
+def build_variant(table: dict[type, Callable[[Any], S]], scenario: Any, slot: str) -> S:
+    """``table[type(scenario.<slot>)](scenario)``, for a factory whose table holds functions
+    of the whole scenario (see :func:`variant_system`)."""
+    return variant_system(table, getattr(scenario, slot), slot)(scenario)

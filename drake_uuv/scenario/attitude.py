@@ -71,8 +71,10 @@ class InformationSeeking:
     # Steps of the receding horizon the criterion is summed over.
     horizon: int = 1
     # [m²] floor on the smallest eigenvalue of Σ q_s q_sᵀ over every window of
-    # analysis.pe_window steps (0: no floor), enforced pe_lead steps before a window closes.
+    # excitation_window steps (0: no floor), enforced pe_lead steps before a window closes.
     excitation_floor: float = 1.0
+    # N [steps] of those windows (24: the paper's persistent-excitation window, eq. 10).
+    excitation_window: int = 24
     pe_lead: int = 6
     # [m/s²] limit on the acceleration of the turning reference R q* (None: no limit).
     max_reference_acceleration: float | None = None
@@ -92,8 +94,14 @@ class InformationSeeking:
         if not 1 <= self.horizon <= 50:
             fail(f"{name}.horizon", "must be in [1, 50]", self.horizon)
         check_positive(f"{name}.excitation_floor", self.excitation_floor, strict=False)
+        if not 3 <= self.excitation_window <= 10**6:
+            fail(f"{name}.excitation_window", "must be in [3, 1e6]", self.excitation_window)
         if self.pe_lead < 0:
             fail(f"{name}.pe_lead", "must be ≥ 0", self.pe_lead)
+        if self.pe_lead > self.excitation_window - 3:
+            window = self.excitation_window
+            fail(f"{name}.pe_lead", f"must be ≤ {name}.excitation_window − 3 = {window - 3}",
+                 self.pe_lead)  # fmt: skip
         if self.max_reference_acceleration is not None:
             check_positive(f"{name}.max_reference_acceleration", self.max_reference_acceleration)
 

@@ -36,6 +36,7 @@ body frame and in this one, so the BlueROV2 numbers carry over unchanged in sign
 # No `from __future__ import annotations`: Drake's yaml loader needs the real field types.
 import math
 from dataclasses import dataclass, field
+from typing import NoReturn
 
 import numpy as np
 
@@ -220,104 +221,115 @@ class HoveringAuv:
 
         Fields are checked in declaration order and the first bad one is reported.
         """
+        check = _FieldChecks(self, prefix)
+        self._validate_hull(check)
+        self._validate_thrusters(check)
+        self._validate_controller(check)
 
-        def fail(name: str, requirement: str, value: object) -> None:
-            raise ScenarioError(f"{prefix}.{name}: {requirement}, got {value!r}")
-
-        def matrix(name: str, shape: tuple[int, ...]) -> np.ndarray:
-            value = getattr(self, name)
-            try:
-                array = np.asarray(value, dtype=float)
-            except (TypeError, ValueError):
-                fail(name, f"must be a {'×'.join(map(str, shape))} array of numbers", value)
-            if array.shape != shape or not np.all(np.isfinite(array)):
-                fail(name, f"must be a finite {'×'.join(map(str, shape))} array", value)
-            return array
-
-        def positive(name: str, strict: bool = True) -> float:
-            value = getattr(self, name)
-            ok = math.isfinite(value) and (value > 0.0 if strict else value >= 0.0)
-            if not ok:
-                fail(name, "must be > 0" if strict else "must be ≥ 0", value)
-            return value
-
-        positive("mass")
-        inertia = matrix("inertia", (3, 3))
+    def _validate_hull(self, check: "_FieldChecks") -> None:
+        """The rigid body, the hydrostatics and the hydrodynamics."""
+        check.positive("mass")
+        inertia = check.matrix("inertia", (3, 3))
         if not np.allclose(inertia, inertia.T, rtol=0.0, atol=1e-12 * np.abs(inertia).max()):
-            fail("inertia", "must be symmetric", self.inertia)
+            check.fail("inertia", "must be symmetric")
         moments = np.linalg.eigvalsh(inertia)
         if moments[0] <= 0.0:
-            fail("inertia", "must be positive definite", self.inertia)
+            check.fail("inertia", "must be positive definite")
         # A rigid body's principal moments obey the triangle inequality (Drake checks it too).
         if moments[2] > moments[0] + moments[1] + 1e-12 * moments[2]:
-            fail("inertia", "principal moments must satisfy the triangle inequality", self.inertia)
-        matrix("center_of_gravity", (3,))
-        matrix("center_of_buoyancy", (3,))
+            check.fail("inertia", "principal moments must satisfy the triangle inequality")
+        check.matrix("center_of_gravity", (3,))
+        check.matrix("center_of_buoyancy", (3,))
         if self.buoyancy is not None:
-            positive("buoyancy")
-        positive("gravity")
-        added = matrix("added_mass", (6, 6))
+            check.positive("buoyancy")
+        check.positive("gravity")
+        added = check.matrix("added_mass", (6, 6))
         if not np.allclose(added, added.T, rtol=0.0, atol=1e-12 * max(np.abs(added).max(), 1.0)):
-            fail("added_mass", "must be symmetric", self.added_mass)
+            check.fail("added_mass", "must be symmetric")
         for name in ("linear_damping", "quadratic_damping"):
-            if np.any(matrix(name, (6,)) < 0.0):
-                fail(name, "must be ≥ 0 (dissipative)", getattr(self, name))
+            if np.any(check.matrix(name, (6,)) < 0.0):
+                check.fail(name, "must be ≥ 0 (dissipative)")
         M = rigid_body_mass_matrix(self.mass, inertia, np.asarray(self.center_of_gravity)) + added
         smallest = np.linalg.eigvalsh(M)[0]
         if smallest <= 0.0:
-            fail(
+            check.fail(
                 "added_mass",
                 f"M = M_RB + M_A must be positive definite (smallest eigenvalue {smallest:.4g}; "
                 "added mass enters with Fossen's sign, +diag(−X_u̇, …))",
-                self.added_mass,
             )
+
+    def _validate_thrusters(self, check: "_FieldChecks") -> None:
+        """The layout (full 6-DOF control), the limit, the lag and the allocation weights."""
         n = len(self.thruster_positions) if isinstance(self.thruster_positions, list) else 0
         if n < 6:
-            fail("thruster_positions", "must list at least 6 thrusters", self.thruster_positions)
-        matrix("thruster_positions", (n, 3))
-        directions = matrix("thruster_directions", (n, 3))
+            check.fail("thruster_positions", "must list at least 6 thrusters")
+        check.matrix("thruster_positions", (n, 3))
+        directions = check.matrix("thruster_directions", (n, 3))
         if np.any(np.linalg.norm(directions, axis=1) < 1e-9):
-            fail("thruster_directions", "must be non-zero", self.thruster_directions)
+            check.fail("thruster_directions", "must be non-zero")
         A = allocation_matrix(np.asarray(self.thruster_positions), directions)
         if np.linalg.matrix_rank(A) < 6:
-            fail(
+            check.fail(
                 "thruster_directions",
                 f"the allocation matrix must have rank 6 for full 6-DOF control (rank "
                 f"{np.linalg.matrix_rank(A)})",
-                self.thruster_directions,
             )
-        positive("max_thrust")
-        positive("thrust_time_constant", strict=False)
-        weights = matrix("allocation_weights", (n,))
-        if np.any(weights <= 0.0):
-            fail("allocation_weights", "must be > 0", self.allocation_weights)
-        rate = positive("controller_rate")
+        check.positive("max_thrust")
+        check.positive("thrust_time_constant", strict=False)
+        if np.any(check.matrix("allocation_weights", (n,)) <= 0.0):
+            check.fail("allocation_weights", "must be > 0")
+
+    def _validate_controller(self, check: "_FieldChecks") -> None:
+        """The low-level controller's rate and bandwidths, its reference, the integrator."""
+        rate = check.positive("controller_rate")
         if not 1.0 <= rate <= 1000.0:
-            fail("controller_rate", "must be in [1, 1000] Hz", rate)
-        positive("attitude_bandwidth")
-        zeta = positive("attitude_damping_ratio")
-        if zeta > 3.0:
-            fail("attitude_damping_ratio", "must be in (0, 3]", zeta)
-        positive("velocity_bandwidth")
+            check.fail("controller_rate", "must be in [1, 1000] Hz")
+        check.positive("attitude_bandwidth")
+        if check.positive("attitude_damping_ratio") > 3.0:
+            check.fail("attitude_damping_ratio", "must be in (0, 3]")
+        check.positive("velocity_bandwidth")
         bandwidth = max(self.attitude_bandwidth, self.velocity_bandwidth)
         phase_lag = bandwidth * (0.5 / rate + self.thrust_time_constant)
         if phase_lag > 0.5:
-            fail(
+            check.fail(
                 "attitude_bandwidth",
                 f"the hold (half a period) and thrust lag must cost ≤ 0.5 rad of phase at the "
                 f"bandwidth: max(attitude, velocity bandwidth) · (0.5/controller_rate + "
                 f"thrust_time_constant) = {phase_lag:.3g}",
-                self.attitude_bandwidth,
             )
         if self.attitude_reference not in ATTITUDE_REFERENCES:
-            fail(
-                "attitude_reference",
-                f"must be one of {', '.join(ATTITUDE_REFERENCES)}",
-                self.attitude_reference,
-            )
-        accuracy = positive("integrator_accuracy")
-        if accuracy > 0.1:
-            fail("integrator_accuracy", "must be in (0, 0.1]", accuracy)
+            check.fail("attitude_reference", f"must be one of {', '.join(ATTITUDE_REFERENCES)}")
+        if check.positive("integrator_accuracy") > 0.1:
+            check.fail("integrator_accuracy", "must be in (0, 0.1]")
+
+
+class _FieldChecks:
+    """One-line errors ``{prefix}.{field}: requirement, got {value!r}`` on a config's fields."""
+
+    def __init__(self, config: object, prefix: str) -> None:
+        self._config, self._prefix = config, prefix
+
+    def fail(self, name: str, requirement: str) -> NoReturn:
+        value = getattr(self._config, name)
+        raise ScenarioError(f"{self._prefix}.{name}: {requirement}, got {value!r}")
+
+    def matrix(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        """The field as a finite float array of ``shape``."""
+        value = getattr(self._config, name)
+        try:
+            array = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            self.fail(name, f"must be a {'×'.join(map(str, shape))} array of numbers")
+        if array.shape != shape or not np.all(np.isfinite(array)):
+            self.fail(name, f"must be a finite {'×'.join(map(str, shape))} array")
+        return array
+
+    def positive(self, name: str, strict: bool = True) -> float:
+        """The field, if it is a finite number > 0 (≥ 0 unless ``strict``)."""
+        value = getattr(self._config, name)
+        if not (math.isfinite(value) and (value > 0.0 if strict else value >= 0.0)):
+            self.fail(name, "must be > 0" if strict else "must be ≥ 0")
+        return value
 
 
 #: The plant slot. The first member is the default of an untagged section.

@@ -7,6 +7,7 @@ The factory that builds the system of each variant is
 import math
 from dataclasses import dataclass, field
 
+from drake_uuv.models.information import TrackingPlanningModel
 from drake_uuv.scenario.validation import check_choice, check_positive, check_vector, fail
 
 # The paper proves bounded tracking for α in (1 − 1/√2, 1 + 1/√2).
@@ -33,6 +34,18 @@ class TrackingOptions:
         check_choice(f"{name}.reference_frame", self.reference_frame, REFERENCE_FRAMES)
         if self.max_acceleration is not None:
             check_positive(f"{name}.max_acceleration", self.max_acceleration)
+
+    def planning_model(self) -> TrackingPlanningModel:
+        """What an attitude planner assumes of this law: q* if it turns with the body, and a
+        reference lag of one step (the law aims at the current point ``R(k) q*``)."""
+        return TrackingPlanningModel(self._body_reference(), reference_lag=1)
+
+    def _body_reference(self) -> tuple[float, float, float] | None:
+        """q* when it is fixed in the body frame, else None."""
+        if self.reference_frame != "body":
+            return None
+        x, y, z = self.desired_relative_position
+        return (float(x), float(y), float(z))
 
 
 @dataclass
@@ -70,6 +83,13 @@ class LqrTracking(TrackingOptions):
     # Feed the attitude plan's reference velocity and acceleration forward (false: regulate to
     # the current point R q* only, which lags the turning reference).
     feedforward: bool = True
+
+    def planning_model(self) -> TrackingPlanningModel:
+        """As :meth:`TrackingOptions.planning_model`, with no lag when the plan is fed forward
+        (the law then lands on the next reference ``R(k+1) q*``)."""
+        return TrackingPlanningModel(
+            self._body_reference(), reference_lag=0 if self.feedforward else 1
+        )
 
     def validate(self, name: str) -> None:
         super().validate(name)

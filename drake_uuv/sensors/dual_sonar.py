@@ -18,7 +18,7 @@ from drake_uuv.models.measurement import (
 )
 from drake_uuv.models.so3 import norm
 from drake_uuv.primitives.random_input import declare_random_input
-from drake_uuv.scenario import Scenario
+from drake_uuv.scenario.schema import SonarConfig
 
 
 def _clip_at_zero(x: float) -> float:
@@ -54,9 +54,9 @@ class SonarFaults:
         return max(self.dropout_probability) > 0.0 or self.outlier_probability > 0.0
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario) -> Self:
-        """The fault model of ``scenario.sonar`` (all off in the paper scenario)."""
-        s = scenario.sonar
+    def from_config(cls, config: SonarConfig) -> Self:
+        """The fault model of a sonar section (all off in the paper scenario)."""
+        s = config
         half_angle = s.beam_half_angle_deg
         return cls(
             max_range=s.max_range,
@@ -126,22 +126,21 @@ class DualSonar(LeafSystem):
     ``x_TU_prior`` (6) and ``P_TU_prior`` (36), the estimator's prediction the pan-tilts point
     at, the random ports ``fault_uniform`` (4, uniform: dropout then outlier draws per sonar) and
     ``multipath_noise`` (2, exponential).
+
+    ``config`` (:class:`~drake_uuv.scenario.SonarConfig`) gives the baseline b, the noise
+    variances η, the samples per step f and the faults (:meth:`SonarFaults.from_config`);
+    ``noise_model`` is the model of ``Y``'s noise that ``m`` and ``Γ`` follow
+    (:data:`~drake_uuv.scenario.NOISE_MODELS`): the estimator's, which the builder passes
+    from the scenario's estimator section.
     """
 
-    def __init__(
-        self,
-        baseline_B: np.ndarray,
-        noise_variances: np.ndarray,
-        samples_per_step: int = 1,
-        noise_model: str = "derived",
-        faults: SonarFaults | None = None,
-    ) -> None:
+    def __init__(self, config: SonarConfig, *, noise_model: str) -> None:
         super().__init__()
-        self._faults = faults or SonarFaults()
-        self._b = np.asarray(baseline_B, dtype=float)
-        self._eta = np.asarray(noise_variances, dtype=float)
+        self._faults = SonarFaults.from_config(config)
+        self._b = np.asarray(config.baseline, dtype=float)
+        self._eta = np.asarray(config.noise_variances, dtype=float)
         self._sigma = np.sqrt(self._eta)[:, np.newaxis]
-        self._f = int(samples_per_step)
+        self._f = int(config.samples_per_step)
         self._noise_model = noise_model
         range_difference_noise(noise_model, self._eta, np.ones(2))  # Fail early on a bad model.
         # The derived model's constants, computed as range_difference_noise computes them.
@@ -191,17 +190,6 @@ class DualSonar(LeafSystem):
         self.DeclareVectorOutputPort("b_W", 3, self._calc_b_W, depends)
         self.DeclareVectorOutputPort("sonar_status", 2, self._calc_status, depends)
         self.DeclareVectorOutputPort("multipath", 2, self._calc_multipath, depends)
-
-    @classmethod
-    def from_scenario(cls, scenario: Scenario) -> Self:
-        """The sonars of ``scenario.sonar``; ``m`` and ``Γ`` from the estimator's noise model."""
-        return cls(
-            np.asarray(scenario.sonar.baseline),
-            np.asarray(scenario.sonar.noise_variances),
-            scenario.sonar.samples_per_step,
-            scenario.estimator.noise_model,
-            SonarFaults.from_scenario(scenario),
-        )
 
     @property
     def faults(self) -> SonarFaults:

@@ -2,13 +2,22 @@
 
 Contract of the slot (system ``tracking_controller``): inputs ``x_TU_hat`` and ``R_WB``, and
 any other signal it needs by name (the LQR law reads ``R_WB_plan``); outputs ``u1_B`` (the
-paper's u1, body frame) and ``u1_W = R_WB u1_B`` (the filter's known input); a ``gain``
-property, the law's 3×6 world-frame gain on the relative state, whose closed-loop eigenvalues
-the metrics report. See :mod:`drake_uuv.signals`.
+paper's u1, body frame) and ``u1_W = R_WB u1_B`` (the filter's known input). A ``gain``
+property, the law's 3×6 world-frame gain on the relative state, gives the closed-loop
+eigenvalues the metrics report (optional: without it the metric is NaN). See
+:mod:`drake_uuv.signals`. Each system is built as ``cls(config, setting=TrackingSetting(...))``
+(:class:`~drake_uuv.tracking.base.TrackingSetting`).
 """
 
-from drake_uuv.tracking.factory import make_tracking_controller
+from drake_uuv.tracking.base import TrackingSetting
+from drake_uuv.tracking.factory import make_tracking_controller, tracking_setting
 from drake_uuv.tracking.lqr_tracking import LqrTrackingController
 from drake_uuv.tracking.paper_tracking import PaperTrackingController
 
-__all__ = ["LqrTrackingController", "PaperTrackingController", "make_tracking_controller"]
+__all__ = [
+    "LqrTrackingController",
+    "PaperTrackingController",
+    "TrackingSetting",
+    "make_tracking_controller",
+    "tracking_setting",
+]

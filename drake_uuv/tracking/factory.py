@@ -1,21 +1,26 @@
 """The tracking slot's factory: the system of each variant of ``scenario.tracking``."""
 
-from collections.abc import Callable
-
 from pydrake.systems.framework import LeafSystem
 
-from drake_uuv.primitives.variant_table import build_variant
+from drake_uuv.primitives.variant_table import variant_system
 from drake_uuv.scenario import LqrTracking, PaperTracking, Scenario
+from drake_uuv.tracking.base import TrackingSetting
 from drake_uuv.tracking.lqr_tracking import LqrTrackingController
 from drake_uuv.tracking.paper_tracking import PaperTrackingController
 
-#: Variant dataclass → the constructor of its system from a scenario.
-TRACKING_CONTROLLERS: dict[type, Callable[[Scenario], LeafSystem]] = {
-    PaperTracking: PaperTrackingController.from_scenario,
-    LqrTracking: LqrTrackingController.from_scenario,
+#: Variant dataclass → its system, built as ``cls(config, setting=TrackingSetting(...))``.
+TRACKING_CONTROLLERS: dict[type, type[LeafSystem]] = {
+    PaperTracking: PaperTrackingController,
+    LqrTracking: LqrTrackingController,
 }
+
+
+def tracking_setting(scenario: Scenario) -> TrackingSetting:
+    """What a tracking law gets from ``scenario``: the period."""
+    return TrackingSetting(time_step=scenario.time_step)
 
 
 def make_tracking_controller(scenario: Scenario) -> LeafSystem:
     """The tracking controller of ``scenario.tracking``'s variant."""
-    return build_variant(TRACKING_CONTROLLERS, scenario, "tracking")
+    cls = variant_system(TRACKING_CONTROLLERS, scenario.tracking, "tracking")
+    return cls(scenario.tracking, setting=tracking_setting(scenario))

@@ -43,8 +43,6 @@ saturated and the law resumes exactly where the unsaturated law would be once th
 falls below the limit.
 """
 
-from typing import Self
-
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
@@ -54,7 +52,8 @@ from drake_uuv.models.tracking_laws import (
     reference_rotation,
     saturate_norm,
 )
-from drake_uuv.scenario import Scenario
+from drake_uuv.scenario.tracking import LqrTracking
+from drake_uuv.tracking.base import TrackingSetting
 
 
 class LqrTrackingController(LeafSystem):
@@ -84,47 +83,27 @@ class LqrTrackingController(LeafSystem):
       generator's output of the same name).
     - ``u1_B`` (3): the body-frame acceleration command [m/s²].
     - ``u1_W`` (3): the same acceleration in the world frame, ``R u1`` (the filter's input).
+
+    ``config`` (:class:`~drake_uuv.scenario.LqrTracking`) gives q*, its frame, the weights,
+    the limit and whether to feed forward; the ``setting`` the period t.
     """
 
-    def __init__(
-        self,
-        time_step: float,
-        desired_relative_position: np.ndarray,
-        position_weight: float,
-        velocity_weight: float,
-        input_weight: float,
-        max_acceleration: float | None = None,
-        feedforward: bool = True,
-        reference_frame: str = "body",
-    ) -> None:
+    def __init__(self, config: LqrTracking, *, setting: TrackingSetting) -> None:
         super().__init__()
-        self._time_step = float(time_step)
-        self._q_star = np.asarray(desired_relative_position, dtype=float)
-        reference_rotation(np.eye(3), reference_frame)  # Fail early on a bad frame.
-        self._frame = reference_frame
-        self._K, _ = lqr_gain(self._time_step, position_weight, velocity_weight, input_weight)
-        self._max_acceleration = max_acceleration
-        self._feedforward = feedforward
+        self._time_step = setting.time_step
+        self._q_star = np.asarray(config.desired_relative_position, dtype=float)
+        reference_rotation(np.eye(3), config.reference_frame)  # Fail early on a bad frame.
+        self._frame = config.reference_frame
+        self._K, _ = lqr_gain(
+            self._time_step, config.position_weight, config.velocity_weight, config.input_weight
+        )
+        self._max_acceleration = config.max_acceleration
+        self._feedforward = config.feedforward
         self._x_hat_port = self.DeclareVectorInputPort("x_TU_hat", 6)
         self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
         self._plan_port = self.DeclareVectorInputPort("R_WB_plan", 18)
         self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1)
         self.DeclareVectorOutputPort("u1_W", 3, self._calc_u1_W)
-
-    @classmethod
-    def from_scenario(cls, scenario: Scenario) -> Self:
-        """The controller of ``scenario.tracking`` (an :class:`~drake_uuv.scenario.LqrTracking`)."""
-        c = scenario.tracking
-        return cls(
-            scenario.time_step,
-            np.asarray(c.desired_relative_position),
-            c.position_weight,
-            c.velocity_weight,
-            c.input_weight,
-            c.max_acceleration,
-            c.feedforward,
-            c.reference_frame,
-        )
 
     @property
     def gain(self) -> np.ndarray:

@@ -1,7 +1,5 @@
 """The paper's tracking law holding the target at ``q*`` in the body frame."""
 
-from typing import Self
-
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
@@ -11,7 +9,8 @@ from drake_uuv.models.tracking_laws import (
     paper_tracking_command,
     reference_rotation,
 )
-from drake_uuv.scenario import Scenario
+from drake_uuv.scenario.tracking import PaperTracking
+from drake_uuv.tracking.base import TrackingSetting
 
 
 class PaperTrackingController(LeafSystem):
@@ -41,40 +40,24 @@ class PaperTrackingController(LeafSystem):
     heading (:func:`~drake_uuv.models.tracking_laws.reference_rotation`); the law then uses
     ``Rᵀ R_WF q*`` in place of q*. With ``max_acceleration`` the command is scaled down to that
     norm (direction kept); the law is static, so there is nothing to wind up.
+
+    ``config`` (:class:`~drake_uuv.scenario.PaperTracking`) gives α, q*, its frame and the
+    limit; the ``setting`` the period t.
     """
 
-    def __init__(
-        self,
-        time_step: float,
-        alpha: float,
-        desired_relative_position: np.ndarray,
-        max_acceleration: float | None = None,
-        reference_frame: str = "body",
-    ) -> None:
+    def __init__(self, config: PaperTracking, *, setting: TrackingSetting) -> None:
         super().__init__()
-        self._time_step = float(time_step)
-        self._alpha = float(alpha)
-        self._k_p, self._k_v = paper_gains(time_step, alpha)
-        self._q_star = np.asarray(desired_relative_position, dtype=float)
-        reference_rotation(np.eye(3), reference_frame)  # Fail early on a bad frame.
-        self._frame = reference_frame
-        self._max_acceleration = max_acceleration
+        self._time_step = setting.time_step
+        self._alpha = float(config.alpha)
+        self._k_p, self._k_v = paper_gains(self._time_step, config.alpha)
+        self._q_star = np.asarray(config.desired_relative_position, dtype=float)
+        reference_rotation(np.eye(3), config.reference_frame)  # Fail early on a bad frame.
+        self._frame = config.reference_frame
+        self._max_acceleration = config.max_acceleration
         self._x_hat_port = self.DeclareVectorInputPort("x_TU_hat", 6)
         self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
         self._u1_port = self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1)
         self.DeclareVectorOutputPort("u1_W", 3, self._calc_u1_W)
-
-    @classmethod
-    def from_scenario(cls, scenario: Scenario) -> Self:
-        """The controller of ``scenario.tracking``, a :class:`~drake_uuv.scenario.PaperTracking`."""
-        c = scenario.tracking
-        return cls(
-            scenario.time_step,
-            c.alpha,
-            np.asarray(c.desired_relative_position),
-            c.max_acceleration,
-            c.reference_frame,
-        )
 
     @property
     def gain(self) -> np.ndarray:

@@ -5,9 +5,9 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from drake_uuv.diagram import make_uuv_diagram
+from drake_uuv.diagram import SLOT_REGISTRY, make_uuv_diagram
 from drake_uuv.io import write_atomic, write_text_atomic
-from drake_uuv.scenario import SLOTS, Scenario, load_scenario, variants
+from drake_uuv.scenario import Scenario, load_scenario
 
 _ID = re.compile(r"(?<=\bs)\d+\b|(?<=cluster)\d+|(?<=digraph _)\d+")
 _EDGE = re.compile(r"^s(\d+):y(\d+):e -> s(\d+):u(\d+):w$")
@@ -47,16 +47,17 @@ def diagram_dot(scenario: Scenario, max_depth: int = 1, loggers: bool = False) -
 def diagram_variants() -> dict[str, list[str]]:
     """Every distinct diagram the package builds, by the overrides of the paper scenario.
 
-    One per variant of each slot (from the scenario's variant types, so a new variant gets its
-    export without anyone editing this function), named ``<slot>_<variant in snake case>``,
-    one with every sonar fault switched on (it adds ports), and none that would repeat the
-    paper's own diagram.
+    One per variant of each slot (from :data:`~drake_uuv.diagram.SLOT_REGISTRY`, so a new
+    variant gets its export without anyone editing this function), named
+    ``<section>_<variant in snake case>``, one with every sonar fault switched on (it adds
+    ports), and none that would repeat the paper's own diagram.
     """
     paper = load_scenario("paper")
     candidates: dict[str, list[str]] = {}
-    for slot in SLOTS:
-        for tag in variants(Scenario, slot):
-            candidates[f"{slot}_{_snake(tag)}"] = [f"{slot}=!{tag}"]
+    for slot in SLOT_REGISTRY:
+        for variant in slot.table:
+            tag = variant.__name__
+            candidates[f"{slot.section}_{_snake(tag)}"] = [f"{slot.section}=!{tag}"]
     candidates["sonar_faults"] = [
         "sonar.beam_half_angle_deg=10",
         "sonar.dropout_probability=[0.1, 0.1]",
@@ -97,10 +98,20 @@ def export_diagram(
     return [dot_path, *(render(dot_path) or [])]
 
 
-def export_all_variants(out_dir: Path, max_depth: int = 1, loggers: bool = False) -> list[Path]:
-    """Exports :func:`diagram_variants` into ``out_dir``."""
+#: The exports the docs embed (README.md shows ``diagrams/paper.svg``): what ``diagrams/``
+#: holds, by name → overrides of the paper scenario.
+DOCUMENTED_DIAGRAMS: dict[str, list[str]] = {"paper": []}
+
+
+def export_all_variants(
+    out_dir: Path,
+    max_depth: int = 1,
+    loggers: bool = False,
+    exports: dict[str, list[str]] | None = None,
+) -> list[Path]:
+    """Exports ``exports`` (default: :func:`diagram_variants`) into ``out_dir``."""
     written = []
-    for name, overrides in diagram_variants().items():
+    for name, overrides in (diagram_variants() if exports is None else exports).items():
         scenario = load_scenario("paper", overrides)
         written += export_diagram(scenario, out_dir, name, max_depth, loggers)
     return written

@@ -34,6 +34,7 @@ class LiveMeshcatVisualizer(LeafSystem):
     def __init__(
         self,
         meshcat: Meshcat,
+        *,
         baseline_B: np.ndarray,
         publish_period: float,
         trail_length: int = 50,

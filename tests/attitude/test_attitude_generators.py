@@ -1,5 +1,6 @@
 """The attitude generators alone: Algorithms 1 and 2, the fixed attitude, rate limits, plans."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -12,16 +13,19 @@ from drake_uuv.attitude import (
     FixedAttitudeGenerator,
     RandomAttitudeGenerator,
     TrajectoryAttitudeGenerator,
+    attitude_setting,
     make_attitude_generator,
 )
 from drake_uuv.models.attitude_plans import zeta
 from drake_uuv.models.so3 import exp_so3, matrix_from_quaternion
-from drake_uuv.scenario import load_scenario
+from drake_uuv.scenario import FixedAttitude, RandomAttitude, TrajectoryAttitude, load_scenario
 from drake_uuv.testing import fixed_context
 from tests.conftest import T
 
 b = np.array([-1.0, 1.0, 0.0])
 R = RotationMatrix(RollPitchYaw(0.4, -0.3, 1.2)).matrix()
+#: The paper's setting: t = 0.5 s, the baseline b.
+SETTING = attitude_setting(load_scenario("paper"))
 
 
 def next_attitude(generator: AttitudeGenerator, context) -> np.ndarray:
@@ -30,13 +34,21 @@ def next_attitude(generator: AttitudeGenerator, context) -> np.ndarray:
 
 
 def test_ports_per_variant() -> None:
-    for generator in (FixedAttitudeGenerator(T), TrajectoryAttitudeGenerator(T, b)):
+    for generator in (
+        FixedAttitudeGenerator(FixedAttitude(), setting=SETTING),
+        TrajectoryAttitudeGenerator(TrajectoryAttitude(), setting=SETTING),
+    ):
         assert generator.num_input_ports() == 1 and generator.GetInputPort("R_WB").size() == 9
         assert generator.GetOutputPort("u2_W").size() == 3
         assert generator.GetOutputPort("R_WB_plan").size() == 18
-    assert RandomAttitudeGenerator(T).GetInputPort("rotation_noise").size() == 4
-    with pytest.raises(ValueError, match=r"^baseline_B: must be a non-zero finite 3-vector"):
-        TrajectoryAttitudeGenerator(T, np.zeros(3))
+    assert (
+        RandomAttitudeGenerator(RandomAttitude(), setting=SETTING)
+        .GetInputPort("rotation_noise")
+        .size()
+        == 4
+    )
+    with pytest.raises(ValueError, match=r"^baseline_B: must be a non-zero 3-vector"):
+        dataclasses.replace(SETTING, baseline_B=np.zeros(3))
 
 
 @pytest.mark.parametrize(
@@ -50,7 +62,7 @@ def test_factory_builds_each_variant(tag: str, kind: type) -> None:
 
 
 def test_fixed_attitude_commands_nothing() -> None:
-    generator = FixedAttitudeGenerator(T)
+    generator = FixedAttitudeGenerator(FixedAttitude(), setting=SETTING)
     assert_allclose(
         generator.GetOutputPort("u2_W").Eval(fixed_context(generator, R_WB=R.ravel())), 0
     )
@@ -66,7 +78,7 @@ def test_zeta_is_the_papers_function() -> None:
 
 @pytest.mark.parametrize("k", [0, 1, 5, 13, 24, 37, 100])
 def test_algorithm_2_makes_the_next_baseline_parallel_to_zeta(k: int) -> None:
-    generator = TrajectoryAttitudeGenerator(T, b)
+    generator = TrajectoryAttitudeGenerator(TrajectoryAttitude(), setting=SETTING)
     context = fixed_context(generator, R_WB=R.ravel())
     context.SetTime(k * T)
     q_s_next = next_attitude(generator, context) @ b
@@ -77,7 +89,7 @@ def test_algorithm_2_makes_the_next_baseline_parallel_to_zeta(k: int) -> None:
 
 
 def test_algorithm_1_jumps_to_the_sampled_rotation() -> None:
-    generator = RandomAttitudeGenerator(T)
+    generator = RandomAttitudeGenerator(RandomAttitude(), setting=SETTING)
     noise = np.array([0.3, -1.2, 0.8, 2.0])
     context = fixed_context(generator, R_WB=R.ravel(), rotation_noise=noise)
     assert_allclose(
@@ -89,7 +101,7 @@ def test_algorithm_1_jumps_to_the_sampled_rotation() -> None:
 
 def test_algorithm_1_samples_are_uniform_rotations() -> None:
     """A uniform rotation maps b to a uniform direction: E[q_s q_sᵀ] = |b|²/3 I (Lemma 1)."""
-    generator = RandomAttitudeGenerator(T)
+    generator = RandomAttitudeGenerator(RandomAttitude(), setting=SETTING)
     context = fixed_context(generator, R_WB=np.eye(3).ravel(), rotation_noise=np.ones(4))
     rng = np.random.default_rng(11)
     n = 5000
@@ -103,8 +115,8 @@ def test_algorithm_1_samples_are_uniform_rotations() -> None:
 
 
 def test_max_angular_rate_limits_the_command_along_the_same_axis() -> None:
-    free = TrajectoryAttitudeGenerator(T, b)
-    limited = TrajectoryAttitudeGenerator(T, b, max_angular_rate=0.2)
+    free = TrajectoryAttitudeGenerator(TrajectoryAttitude(), setting=SETTING)
+    limited = TrajectoryAttitudeGenerator(TrajectoryAttitude(max_angular_rate=0.2), setting=SETTING)
     context_free = fixed_context(free, R_WB=R.ravel())
     context_limited = fixed_context(limited, R_WB=R.ravel())
     w_free = free.GetOutputPort("u2_W").Eval(context_free)
@@ -119,7 +131,9 @@ def test_max_angular_rate_limits_the_command_along_the_same_axis() -> None:
 
 @pytest.mark.parametrize("max_rate", [None, 0.3])
 def test_trajectory_plan_is_the_next_two_attitudes(max_rate: float | None) -> None:
-    generator = TrajectoryAttitudeGenerator(T, b, max_angular_rate=max_rate)
+    generator = TrajectoryAttitudeGenerator(
+        TrajectoryAttitude(max_angular_rate=max_rate), setting=SETTING
+    )
     k = 17
     context = fixed_context(generator, R_WB=R.ravel())
     context.SetTime(k * T)
@@ -132,7 +146,7 @@ def test_trajectory_plan_is_the_next_two_attitudes(max_rate: float | None) -> No
 
 
 def test_random_plan_holds_the_next_attitude_and_fixed_holds_the_current() -> None:
-    generator = RandomAttitudeGenerator(T)
+    generator = RandomAttitudeGenerator(RandomAttitude(), setting=SETTING)
     context = fixed_context(generator, R_WB=R.ravel(), rotation_noise=[0.3, -1.2, 0.8, 2.0])
     R1 = exp_so3(generator.GetOutputPort("u2_W").Eval(context) * T) @ R
     assert_allclose(
@@ -140,6 +154,6 @@ def test_random_plan_holds_the_next_attitude_and_fixed_holds_the_current() -> No
         np.r_[R1.ravel(), R1.ravel()],
         atol=1e-12,
     )
-    fixed = FixedAttitudeGenerator(T)
+    fixed = FixedAttitudeGenerator(FixedAttitude(), setting=SETTING)
     plan = fixed.GetOutputPort("R_WB_plan").Eval(fixed_context(fixed, R_WB=R.ravel()))
     assert_allclose(plan, np.r_[R.ravel(), R.ravel()])

@@ -1,5 +1,6 @@
 """The information-seeking attitude generator as a Drake system."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -7,22 +8,53 @@ import pytest
 from numpy.testing import assert_allclose
 from pydrake.systems.framework import DiagramBuilder
 
+from drake_uuv.attitude import AttitudeSetting
 from drake_uuv.attitude.information_seeking import InformationSeekingAttitude
-from drake_uuv.estimators import RangeDifferenceKalmanFilter
-from drake_uuv.models.information import InformationSeekingPlanner, rotation_angles
+from drake_uuv.estimators import make_estimator
+from drake_uuv.models.attitude_candidates import rotation_angles
+from drake_uuv.models.information import (
+    EstimatorPlanningModel,
+    PlannedMeasurement,
+    TrackingPlanningModel,
+)
 from drake_uuv.models.so3 import exp_so3
+from drake_uuv.scenario import InformationSeeking, LqrTracking, load_scenario
 from drake_uuv.testing import discrete_update, fixed_context
-from drake_uuv.tracking import LqrTrackingController
+from drake_uuv.tracking import LqrTrackingController, TrackingSetting
 from tests.conftest import ETA, T, W
 
 B = np.array([-1.0, 1.0, 0.0])
 Q_STAR = np.array([-2.0, -2.0, 0.0])
 R0 = exp_so3(np.array([0.4, -0.3, 1.2]))
 X_HAT = np.array([-2.1, -1.8, 0.3, 0.05, -0.02, 0.01])
+#: The paper's KF, and a raw-range estimator without a linear start.
+KF = EstimatorPlanningModel(PlannedMeasurement.RANGE_DIFFERENCE)
+RANGES = EstimatorPlanningModel(PlannedMeasurement.RANGES)
 
 
-def planner(**options) -> InformationSeekingPlanner:
-    return InformationSeekingPlanner(T, B, W, ETA, desired_relative_position=Q_STAR, **options)
+def setting(estimator: EstimatorPlanningModel = KF, reference_lag: int = 0) -> AttitudeSetting:
+    """The paper's sonars and target, planning for ``estimator`` and a law holding q* in the
+    body frame with ``reference_lag``."""
+    return AttitudeSetting(
+        time_step=T,
+        baseline_B=B,
+        noise_variances=ETA,
+        samples_per_step=1,
+        acceleration_covariance=W,
+        estimator=estimator,
+        tracking=TrackingPlanningModel(tuple(Q_STAR), reference_lag),
+    )
+
+
+def planning_system(
+    estimator: EstimatorPlanningModel = KF,
+    reference_lag: int = 0,
+    **config,
+) -> InformationSeekingAttitude:
+    """The planner of ``InformationSeeking(**config)`` for :func:`setting`."""
+    return InformationSeekingAttitude(
+        InformationSeeking(**config), setting=setting(estimator, reference_lag)
+    )
 
 
 def covariance(seed: int = 0) -> np.ndarray:
@@ -36,7 +68,7 @@ def context_for(system: InformationSeekingAttitude, R=R0, x=X_HAT, P=None):
 
 
 def test_ports_and_sizes() -> None:
-    system = InformationSeekingAttitude(planner())
+    system = planning_system()
     inputs = {
         system.get_input_port(i).get_name(): system.get_input_port(i).size()
         for i in range(system.num_input_ports())
@@ -52,16 +84,30 @@ def test_ports_and_sizes() -> None:
     assert context.get_discrete_state(0).size() == 3 * 22 + 1
     assert context.get_discrete_state(1).size() == 10
     assert context.get_discrete_state(2).size() == 1
-    with pytest.raises(ValueError, match="planner: must be an InformationSeekingPlanner, got 'kf'"):
-        InformationSeekingAttitude("kf")
+
+
+@pytest.mark.parametrize(
+    "field, value, message",
+    [
+        ("estimator", "kf", r"^estimator: must be a EstimatorPlanningModel, got 'kf'"),
+        ("tracking", None, r"^tracking: must be a TrackingPlanningModel, got None"),
+        ("baseline_B", [0.0, 0.0, 0.0], r"^baseline_B: must be a non-zero 3-vector"),
+        ("noise_variances", [0.01], r"^noise_variances: must be 2 finite numbers, got \[0.01\]"),
+        ("samples_per_step", 0, r"^samples_per_step: must be an integer ≥ 1, got 0"),
+        ("time_step", -1.0, r"^time_step: must be > 0, got -1.0"),
+    ],
+)
+def test_a_bad_setting_names_the_field(field: str, value, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        dataclasses.replace(setting(), **{field: value})
 
 
 @pytest.mark.parametrize(
     "options",
-    [{}, {"measurement_model": "ranges", "position_prediction": "reference", "reference_lag": 1}],
+    [{}, {"estimator": RANGES, "position_prediction": "reference", "reference_lag": 1}],
 )
 def test_planned_next_attitude_is_the_plants_next_attitude(options: dict) -> None:
-    system = InformationSeekingAttitude(planner(**options))
+    system = planning_system(**options)
     context = context_for(system)
     u2 = system.GetOutputPort("u2_W").Eval(context)
     plan = system.GetOutputPort("R_WB_plan").Eval(context)
@@ -78,7 +124,7 @@ def test_planned_next_attitude_is_the_plants_next_attitude(options: dict) -> Non
 
 
 def test_update_shifts_the_baseline_history_and_keeps_the_attitude() -> None:
-    system = InformationSeekingAttitude(planner())
+    system = planning_system()
     context = context_for(system)
     history = discrete_update(system, context, 0)
     assert history[-1] == 1
@@ -98,12 +144,10 @@ def test_linear_start_is_mirrored_one_way() -> None:
     """For a raw-range estimator the planner plans for the paper's ``Y`` until the filtered
     ``trace P_qq`` reaches the hand-over threshold, then for the ranges, for good."""
     threshold = 0.5
-    ranges = InformationSeekingAttitude(
-        planner(measurement_model="ranges", linear_start_position_variance=threshold)
+    ranges = planning_system(
+        EstimatorPlanningModel(PlannedMeasurement.RANGES, threshold), position_prediction="hold"
     )
-    linear = InformationSeekingAttitude(
-        InformationSeekingPlanner(T, B, W, ETA, desired_relative_position=Q_STAR)
-    )
+    linear = planning_system()
     # Least known along the line of sight: Y would measure it, the ranges already do (trace
     # P_qq 1.2 m² and 0.3 m²).
     wide, narrow = 0.4 * np.eye(6), 0.1 * np.eye(6)
@@ -137,7 +181,7 @@ def test_state_feeds_the_plan() -> None:
     """The stored history and previous attitude are the planner's: a reference limit
     computed from the stored ``R(k−1)`` holds."""
     limit = 1.0
-    system = InformationSeekingAttitude(planner(max_reference_acceleration=limit))
+    system = planning_system(max_reference_acceleration=limit)
     R_previous = exp_so3(np.array([0.0, 0.0, -0.3])) @ R0
     context = context_for(system)
     context.get_mutable_discrete_state(1).SetFromVector(np.append(R_previous.ravel(), 1.0))
@@ -149,8 +193,8 @@ def test_state_feeds_the_plan() -> None:
 
 
 def test_outputs_are_reproducible() -> None:
-    first = InformationSeekingAttitude(planner(measurement_model="ranges"))
-    second = InformationSeekingAttitude(planner(measurement_model="ranges"))
+    first = planning_system(RANGES, position_prediction="hold")
+    second = planning_system(RANGES, position_prediction="hold")
     a = first.GetOutputPort("R_WB_plan").Eval(context_for(first))
     b = second.GetOutputPort("R_WB_plan").Eval(context_for(second))
     assert np.array_equal(a, b)
@@ -160,16 +204,18 @@ def test_reads_the_filtered_estimate_without_an_algebraic_loop_through_lqr() -> 
     """Estimator → planner → LQR (reads ``R_WB_plan``) → applied acceleration → estimator:
     no algebraic loop, because the filtered estimate never depends on the acceleration."""
     builder = DiagramBuilder()
-    estimator = builder.AddSystem(RangeDifferenceKalmanFilter(T, W, np.zeros(6), np.eye(6)))
-    attitude = builder.AddSystem(InformationSeekingAttitude(planner()))
-    controller = builder.AddSystem(LqrTrackingController(T, Q_STAR, 1.0, 0.25, 0.1))
+    estimator = builder.AddSystem(make_estimator(load_scenario("paper")))  # the paper's KF
+    attitude = builder.AddSystem(planning_system())
+    lqr = LqrTracking(desired_relative_position=Q_STAR.tolist())
+    controller = builder.AddSystem(LqrTrackingController(lqr, setting=TrackingSetting(T)))
     builder.Connect(estimator.GetOutputPort("x_TU_hat"), attitude.GetInputPort("x_TU_hat"))
     builder.Connect(estimator.GetOutputPort("P_TU"), attitude.GetInputPort("P_TU"))
     builder.Connect(estimator.GetOutputPort("x_TU_hat"), controller.GetInputPort("x_TU_hat"))
     builder.Connect(attitude.GetOutputPort("R_WB_plan"), controller.GetInputPort("R_WB_plan"))
     builder.Connect(controller.GetOutputPort("u1_W"), estimator.GetInputPort("u1_W"))
-    for port in ("Y", "m", "Gamma", "b_W", "sonar_status"):
+    for port in ("range_samples", "sonar_status"):
         builder.ExportInput(estimator.GetInputPort(port), port)
+    builder.ExportInput(estimator.GetInputPort("R_WB"), "R_WB_estimator")
     builder.ExportInput(attitude.GetInputPort("R_WB"), "R_WB_attitude")
     builder.ExportInput(controller.GetInputPort("R_WB"), "R_WB_controller")
     builder.ExportOutput(attitude.GetOutputPort("u2_W"), "u2_W")
@@ -180,9 +226,10 @@ def test_reads_the_filtered_estimate_without_an_algebraic_loop_through_lqr() -> 
     )
     context = diagram.CreateDefaultContext()
     q_s = R0 @ B
-    for name, value in (("Y", [q_s @ X_HAT[:3]]), ("m", [0.0]), ("Gamma", [0.17]),
-                        ("b_W", q_s), ("sonar_status", [0.0, 0.0]),
-                        ("R_WB_attitude", R0.ravel()), ("R_WB_controller", R0.ravel())):  # fmt: skip
+    ranges = [np.linalg.norm(X_HAT[:3] + 0.5 * q_s), np.linalg.norm(X_HAT[:3] - 0.5 * q_s)]
+    for name, value in (("range_samples", ranges), ("sonar_status", [0.0, 0.0]),
+                        ("R_WB_estimator", R0.ravel()), ("R_WB_attitude", R0.ravel()),
+                        ("R_WB_controller", R0.ravel())):  # fmt: skip
         diagram.GetInputPort(name).FixValue(context, np.asarray(value, dtype=float))
     u2 = diagram.GetOutputPort("u2_W").Eval(context)
     assert 0.0 < np.linalg.norm(u2) * T <= 0.39 + 1e-12
@@ -192,7 +239,7 @@ def test_a_long_run_of_the_system_keeps_budget_and_floor() -> None:
     """The system stepped with its own update on random estimates: every rotation within
     the budget, every window of N = 24 steps above the floor."""
     rng = np.random.default_rng(3)
-    system = InformationSeekingAttitude(planner(max_angle_per_step=0.2))
+    system = planning_system(max_angle_per_step=0.2)
     context = system.CreateDefaultContext()
     R = [R0]
     for _ in range(200):

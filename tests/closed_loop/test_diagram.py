@@ -1,15 +1,21 @@
 """The builder: every system named, inputs wired by name, slot contracts checked."""
 
+import math
+
 import numpy as np
 import pytest
+from numpy.testing import assert_allclose
 from pydrake.systems.framework import LeafSystem
 
-from drake_uuv.diagram import make_uuv_diagram
-from drake_uuv.estimators import RangeDifferenceKalmanFilter
-from drake_uuv.estimators.factory import ESTIMATORS
+from drake_uuv.diagram import SLOT_REGISTRY, SYSTEM_NAMES, make_uuv_diagram
+from drake_uuv.models.tracking_laws import paper_tracking_command
 from drake_uuv.plants.factory import PLANTS
-from drake_uuv.scenario import KinematicUuv, PaperKf, load_scenario
+from drake_uuv.scenario import SLOTS, KinematicUuv, Scenario, load_scenario, variants
 from drake_uuv.signals import SIGNALS, check_contract
+from drake_uuv.simulation import ClosedLoopSimulation
+from tests.closed_loop.user_systems import ConstantEstimator, ProportionalTracking
+
+SHORT = ["steps=40", "steady_state_start=10"]
 
 
 def test_names_systems_sources_and_loggers(paper) -> None:
@@ -57,26 +63,35 @@ class _NeedsSomethingElse(_NoAttitude):
 
 
 def test_a_plant_missing_a_contract_output_is_refused(paper, monkeypatch) -> None:
-    monkeypatch.setitem(PLANTS, KinematicUuv, lambda scenario: _NoAttitude())
+    monkeypatch.setitem(PLANTS, KinematicUuv, lambda config, *, setting: _NoAttitude())
     with pytest.raises(ValueError, match=r"^uuv \(!KinematicUuv\): has no output port 'R_WB'"):
         make_uuv_diagram(paper)
+    with pytest.raises(ValueError, match=r"^uuv \(given _NoAttitude\): has no output port 'R_WB'"):
+        make_uuv_diagram(paper, systems={"uuv": _NoAttitude()})
 
 
-def test_an_input_without_a_producer_is_refused(paper, monkeypatch) -> None:
-    monkeypatch.setitem(PLANTS, KinematicUuv, lambda scenario: _NeedsSomethingElse())
+def test_an_input_without_a_producer_is_refused(paper) -> None:
     with pytest.raises(ValueError, match=r"^uuv: input port 'water_current_W' has no producer"):
-        make_uuv_diagram(paper)
+        make_uuv_diagram(paper, systems={"uuv": _NeedsSomethingElse()})
 
 
-def test_a_signal_with_two_producers_is_refused(paper, monkeypatch) -> None:
-    def estimator_with_a_stray_output(scenario):
-        system = RangeDifferenceKalmanFilter.from_scenario(scenario)
-        system.DeclareVectorOutputPort("p_WT", 3, lambda context, output: output.SetZero())
-        return system
-
-    monkeypatch.setitem(ESTIMATORS, PaperKf, estimator_with_a_stray_output)
+def test_a_signal_with_two_producers_is_refused(paper) -> None:
+    estimator = ConstantEstimator(np.zeros(6), np.eye(6))
+    estimator.DeclareVectorOutputPort("p_WT", 3, lambda context, output: output.SetZero())
     with pytest.raises(ValueError, match=r"^estimator and target both output 'p_WT'"):
-        make_uuv_diagram(paper)
+        make_uuv_diagram(paper, systems={"estimator": estimator})
+
+
+@pytest.mark.parametrize(
+    "systems, message",
+    [
+        ({"filter": _NoAttitude()}, r"^systems: unknown system name 'filter' \(the loop's are uuv, "),
+        ({"estimator": "kf"}, r"^systems\['estimator'\]: must be a Drake System, got 'kf'$"),
+    ],
+)  # fmt: skip
+def test_bad_user_systems_are_named(paper, systems: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        make_uuv_diagram(paper, systems=systems)
 
 
 def test_contract_sizes_are_checked() -> None:
@@ -117,3 +132,47 @@ def test_a_variant_missing_from_its_factory_is_named(paper, monkeypatch) -> None
         TypeError, match=r"^plant: no system for !KinematicUuv in the slot's factory"
     ):
         make_uuv_diagram(paper)
+
+
+def test_the_registry_holds_every_slot_and_every_variant() -> None:
+    assert [slot.section for slot in SLOT_REGISTRY] == list(SLOTS)
+    assert {slot.system for slot in SLOT_REGISTRY} < set(SYSTEM_NAMES)
+    for slot in SLOT_REGISTRY:
+        assert set(slot.table) == set(variants(Scenario, slot.section).values())
+        assert set(slot.tags) == {f"!{tag}" for tag in variants(Scenario, slot.section)}
+
+
+# ------------------------------------------------------------------ systems of your own
+
+
+def test_a_user_estimator_replaces_the_scenarios() -> None:
+    """A constant estimate drives the loop: the log holds it, the paper's law acts on it, the
+    sonar still measures, and the monitor lets a consistent-looking estimate run."""
+    scenario = load_scenario("paper", SHORT)
+    x = np.array([-1.0, -2.5, 0.5, 0.1, 0.0, -0.1])
+    P = np.diag([0.3, 0.2, 0.1, 0.03, 0.02, 0.01])
+    simulation = ClosedLoopSimulation(scenario, systems={"estimator": ConstantEstimator(x, P)})
+    log = simulation.run(3).log
+    assert isinstance(simulation.built.systems["estimator"], ConstantEstimator)
+    assert_allclose(log["x_TU_hat"], np.broadcast_to(x, (40, 6)))
+    assert_allclose(log["P_TU"], np.broadcast_to(P, (40, 6, 6)))
+    k_p, k_v = 2 * 1.2 / 0.5**2, 2 / 0.5
+    expected = [
+        paper_tracking_command(x, R, np.array([-2.0, -2.0, 0.0]), k_p, k_v) for R in log["R_WB"]
+    ]
+    assert_allclose(log["u1_B"], expected, rtol=1e-12, atol=1e-12)
+    # Y = q_sᵀ q + v̄, the noise of mean m and variance Γ: within 5 σ at all 40 steps.
+    noise = log["Y"] - np.einsum("ki,ki->k", log["b_W"], log["p_WU"] - log["p_WT"])
+    assert np.all(np.abs(noise - log["m"]) < 5 * np.sqrt(log["Gamma"]))
+    assert np.all(np.isnan(log["nis"]))
+
+
+def test_a_user_tracking_law_without_a_gain_runs_and_reports_no_spectral_radius() -> None:
+    q_star = np.array([-2.0, -2.0, 0.0])
+    law = ProportionalTracking(0.5, q_star)
+    result = ClosedLoopSimulation(
+        load_scenario("paper", SHORT), systems={"tracking_controller": law}
+    ).run()
+    assert math.isnan(result.metrics["tracking_spectral_radius"])
+    assert_allclose(result.log["u1_W"], -0.5 * (result.log["x_TU_hat"][:, :3] - q_star))
+    assert np.isfinite(result.metrics["position_rmse"])

@@ -1,52 +1,53 @@
 """The run monitor stops a broken estimator with a message that says which check and when."""
 
-import functools
+import math
 
 import numpy as np
 import pytest
 
 from drake_uuv import ClosedLoopSimulation, load_scenario
 from drake_uuv.cli import main
-from drake_uuv.estimators import RangeDifferenceKalmanFilter
-from drake_uuv.estimators.base import EstimatorSetting, MeasurementUpdate
-from drake_uuv.estimators.factory import ESTIMATORS
 from drake_uuv.monitor import SimulationFailure
-from drake_uuv.scenario import PaperKf
+from tests.closed_loop.user_systems import ConstantEstimator
 
 SHORT = ["steps=80", "steady_state_start=0"]
+#: A healthy-looking estimate: near q*, a consistent covariance and NIS.
+X = np.array([-2.0, -2.0, 0.0, 0.0, 0.0, 0.0])
+P = 0.1 * np.eye(6)
 
 
-class BrokenFilter(RangeDifferenceKalmanFilter):
-    """The paper's KF, sabotaged from step ``at`` on by ``how``."""
+class BrokenEstimator(ConstantEstimator):
+    """A constant estimate with NIS 0.5, sabotaged from step ``at`` on by ``how``."""
 
-    def __init__(self, config: PaperKf, *, setting: EstimatorSetting, how: str, at: int) -> None:
-        super().__init__(config, setting=setting)
+    def __init__(self, how: str, at: int) -> None:
+        super().__init__(X, P)
         self._how, self._at = how, at
 
-    def measurement_update(self, context, prior, ranges):
-        update = super().measurement_update(context, prior, ranges)
+    def estimate(self, context):
         if round(context.get_time() / 0.5) < self._at:
-            return update
+            return X, P, 0.5
         if self._how == "indefinite":
-            P = update.P.copy()
-            P[0, 0] = -1.0
-            return MeasurementUpdate(update.x, P, update.nis, 1)
+            broken = P.copy()
+            broken[0, 0] = -1.0
+            return X, broken, 0.5
         if self._how == "asymmetric":
-            P = update.P.copy()
-            P[0, 1] += 0.5
-            return MeasurementUpdate(update.x, P, update.nis, 1)
+            broken = P.copy()
+            broken[0, 1] += 0.5
+            return X, broken, 0.5
         if self._how == "nan":
-            return MeasurementUpdate(np.full(6, np.nan), update.P, update.nis, 1)
+            return np.full(6, math.nan), P, 0.5
         if self._how == "innovations":
-            return MeasurementUpdate(update.x, update.P, 1e4, 1)
+            return X, P, 1e4
         raise ValueError(self._how)
 
 
 @pytest.fixture
 def broken(monkeypatch):
     def use(how: str, at: int) -> None:
-        # The estimator slot's factory builds the sabotaged filter for the paper's KF.
-        monkeypatch.setitem(ESTIMATORS, PaperKf, functools.partial(BrokenFilter, how=how, at=at))
+        # The builder's estimator, for runs that take no systems (the command line).
+        monkeypatch.setattr(
+            "drake_uuv.diagram.make_estimator", lambda scenario: BrokenEstimator(how, at)
+        )
 
     return use
 
@@ -60,13 +61,39 @@ def broken(monkeypatch):
         ("innovations", r"innovations blew up: median NIS 5e\+03 over the last 20 updates", 39),
     ],
 )
-def test_monitor_stops_the_run_and_says_which_and_when(broken, how, message, step) -> None:
-    broken(how, 30)
-    simulation = ClosedLoopSimulation(load_scenario("paper", SHORT))
+def test_monitor_stops_the_run_and_says_which_and_when(how, message, step) -> None:
+    estimator = BrokenEstimator(how, 30)
+    simulation = ClosedLoopSimulation(
+        load_scenario("paper", SHORT), systems={"estimator": estimator}
+    )
     with pytest.raises(SimulationFailure, match=message) as info:
         simulation.run()
     assert f"at step k={step} (t={step * 0.5:g} s)" in str(info.value)
     assert str(info.value).startswith("seed 0: run stopped: ")
+    # The failure is the monitor's record, not text read back from the Simulator's error.
+    assert str(info.value) == f"seed 0: run stopped: {simulation.monitor.failure}"
+    assert isinstance(info.value.__cause__, RuntimeError)
+    # The next run starts afresh.
+    simulation.monitor.reset()
+    assert simulation.monitor.failure is None
+
+
+def test_other_simulator_errors_are_not_taken_for_the_monitors() -> None:
+    """An error the monitor did not record passes through unchanged, whatever its text."""
+
+    class Failing(ConstantEstimator):
+        def estimate(self, context):
+            if context.get_time() > 5.0:
+                raise RuntimeError("estimator exploded (not the monitor's finding)")
+            return X, P, 0.5
+
+    simulation = ClosedLoopSimulation(
+        load_scenario("paper", SHORT), systems={"estimator": Failing(X, P)}
+    )
+    with pytest.raises(RuntimeError, match="not the monitor's finding") as info:
+        simulation.run()
+    assert not isinstance(info.value, SimulationFailure)
+    assert simulation.monitor.failure is None
 
 
 def test_cli_reports_a_stopped_run_in_one_line(broken, capsys, tmp_path) -> None:

@@ -6,20 +6,22 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from drake_uuv.models.filters import ekf_update, range_difference_update
-from drake_uuv.models.information import (
-    InformationSeekingPlanner,
+from drake_uuv.models.attitude_candidates import (
     ball_rotations,
     cap_directions,
-    criterion_values,
-    excitation_eigenvalues,
     minimal_rotation_vectors,
-    posterior_covariances,
-    range_difference_rows,
-    range_rows,
     rotate_vectors,
     rotation_angles,
 )
+from drake_uuv.models.filters import ekf_update, range_difference_update
+from drake_uuv.models.information import (
+    criterion_values,
+    excitation_eigenvalues,
+    posterior_covariances,
+    range_difference_rows,
+    range_rows,
+)
+from drake_uuv.models.information_planner import InformationSeekingPlanner
 from drake_uuv.models.measurement import range_jacobian
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
 from drake_uuv.models.so3 import exp_so3, log_so3, minimal_rotation

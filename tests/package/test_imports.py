@@ -33,6 +33,7 @@ LAYERS: list[set[str]] = [
         "tracking",
         "testing",
         "visualization.scene",
+        "visualization.scene_content",
         "visualization.live_visualizer",
     },
     {"diagram", "monitor", "signals"},  # the closed loop

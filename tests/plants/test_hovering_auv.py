@@ -18,6 +18,7 @@ from drake_uuv.analysis.vehicle_figures import (
 )
 from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.so3 import exp_so3, log_so3
+from drake_uuv.plants import PlantSetting
 from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
 from drake_uuv.scenario import ScenarioError
 from drake_uuv.scenario.plants import HoveringAuv
@@ -31,15 +32,16 @@ OUTPUTS = {
 }  # fmt: skip
 
 
-def make_plant(**kwargs) -> HoveringAuvPlant:
+def make_plant(config: HoveringAuv | None = None, **setting) -> HoveringAuvPlant:
+    """The vehicle of ``config`` (default: HoloOcean's), at a yaw of 0.3 rad unless
+    ``setting`` says otherwise."""
     args = dict(
-        config=HoveringAuv(),
         time_step=T,
         initial_position=np.array([1.0, -2.0, 3.0]),
         initial_velocity=np.array([0.1, 0.0, -0.05]),
-        initial_rpy=np.array([0.0, 0.0, 0.3]),
+        initial_R_WB=RotationMatrix(RollPitchYaw(0.0, 0.0, 0.3)).matrix(),
     )
-    return HoveringAuvPlant(**{**args, **kwargs})
+    return HoveringAuvPlant(config or HoveringAuv(), setting=PlantSetting(**{**args, **setting}))
 
 
 def test_ports_and_systems() -> None:
@@ -123,7 +125,8 @@ def test_roll_pitch_yaw_matches_drake() -> None:
     "kwargs, error, message",
     [
         (dict(time_step=-0.5), ValueError, r"^time_step: must be > 0, got -0\.5$"),
-        (dict(initial_rpy=np.zeros(2)), ValueError, r"^initial_rpy: must be 3 finite numbers"),
+        (dict(initial_R_WB=np.ones((3, 3))), ValueError, r"^initial_R_WB: must be a rotation"),
+        (dict(initial_R_WB=-np.eye(3)), ValueError, r"^initial_R_WB: must be a rotation"),
         (
             dict(initial_position=np.array([0, 0, np.inf])),
             ValueError,

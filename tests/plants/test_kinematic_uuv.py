@@ -1,5 +1,7 @@
 """The paper's kinematic vehicle (eqs. 1–2): ports, one step in closed form, long runs."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -9,15 +11,16 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from drake_uuv.plants import KinematicUuvPlant, make_plant
-from drake_uuv.scenario import Scenario
+from drake_uuv.plants import KinematicUuvPlant, PlantSetting, make_plant, plant_setting
+from drake_uuv.scenario import KinematicUuv, Scenario, load_scenario
 from drake_uuv.testing import discrete_update, fixed_context
 from tests.conftest import T
 
 
 def plant_at(R0: np.ndarray | None = None) -> KinematicUuvPlant:
     R0 = np.eye(3) if R0 is None else R0
-    return KinematicUuvPlant(T, np.array([1.0, -2.0, 3.0]), np.array([0.1, 0.2, -0.3]), R0)
+    setting = PlantSetting(T, np.array([1.0, -2.0, 3.0]), np.array([0.1, 0.2, -0.3]), R0)
+    return KinematicUuvPlant(KinematicUuv(), setting=setting)
 
 
 def test_ports() -> None:
@@ -91,3 +94,18 @@ def test_factory_builds_it_from_the_scenario() -> None:
     assert_allclose(plant.GetOutputPort("p_WU").Eval(context), [4, 5, 6])
     R = plant.GetOutputPort("R_WB").Eval(context).reshape(3, 3)
     assert_allclose(R @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], atol=1e-15)  # yaw 90°: x → y
+
+
+def test_the_setting_is_checked_and_read_only() -> None:
+    setting = plant_setting(load_scenario("paper", ["uuv.initial_rpy=[0.1, -0.2, 0.3]"]))
+    assert_allclose(setting.initial_R_WB, RotationMatrix(RollPitchYaw(0.1, -0.2, 0.3)).matrix())
+    assert setting.time_step == 0.5
+    with pytest.raises(ValueError, match="read-only"):
+        setting.initial_position[0] = 1.0
+    for field, value, message in (
+        ("time_step", 0.0, r"^time_step: must be > 0, got 0.0$"),
+        ("initial_velocity", [1.0, 2.0], r"^initial_velocity: must be 3 finite numbers"),
+        ("initial_R_WB", np.diag([1.0, 1.0, -1.0]), r"^initial_R_WB: must be a rotation matrix"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            dataclasses.replace(setting, **{field: value})

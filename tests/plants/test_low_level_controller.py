@@ -12,6 +12,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 
 from drake_uuv.models.so3 import exp_so3, log_so3
+from drake_uuv.plants import PlantSetting
 from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
 from drake_uuv.plants.low_level_controller import LowLevelController
 from drake_uuv.scenario import ScenarioError
@@ -33,7 +34,7 @@ OUTPUTS = {
 
 def test_ports_period_and_gains() -> None:
     config = HoveringAuv(controller_rate=30.0)
-    controller = LowLevelController(config, T, np.eye(3))
+    controller = LowLevelController(config, outer_period=T, initial_R_WB=np.eye(3))
     assert [controller.get_input_port(i).get_name() for i in range(4)] == [
         "u1_B", "u2_W", "R_WB", "nu_B",
     ]  # fmt: skip
@@ -64,7 +65,7 @@ def test_an_outer_tick_uses_the_fresh_command_and_other_ticks_the_latch() -> Non
     config = HoveringAuv()
     model = config.vehicle_model()
     R = RotationMatrix(RollPitchYaw(0.0, 0.0, 0.8)).matrix()  # upright: no restoring moment
-    controller = LowLevelController(config, T, R)
+    controller = LowLevelController(config, outer_period=T, initial_R_WB=R)
     u1, u2 = np.array([0.4, -0.2, 0.3]), np.array([0.1, 0.2, -0.3])
     for time in (0.0, T, 7 * T):  # outer ticks
         context = controller_context(controller, time, np.zeros(6), R)
@@ -94,7 +95,7 @@ def test_one_update_is_the_computed_torque_law() -> None:
     config = HoveringAuv()
     model = config.vehicle_model()
     R_k = RotationMatrix(RollPitchYaw(0.2, -0.1, 0.5)).matrix()
-    controller = LowLevelController(config, T, R_k)
+    controller = LowLevelController(config, outer_period=T, initial_R_WB=R_k)
     context = controller_context(controller, 0.1, np.zeros(6), R_k)
     # A latched step k at t_k = 0: a_W, v(kt), R(kt), and u2 in force; now s = 0.1 s.
     a_W, v_k, u2 = np.array([0.3, -0.1, 0.2]), np.array([0.2, 0.1, 0.0]), np.array([0.2, -0.1, 0.4])
@@ -125,9 +126,9 @@ def run_plant(config: HoveringAuv, outer_period: float, u1: np.ndarray, u2: np.n
               duration: float, rpy=(0.0, 0.0, 0.0), log_period: float = 0.005):  # fmt: skip
     """HoveringAuvPlant under constant commands; returns (times, R_WB rows, v_WU rows)."""
     builder = DiagramBuilder()
-    plant = builder.AddSystem(
-        HoveringAuvPlant(config, outer_period, np.zeros(3), np.zeros(3), np.array(rpy))
-    )
+    R0 = RotationMatrix(RollPitchYaw(np.array(rpy))).matrix()
+    setting = PlantSetting(outer_period, np.zeros(3), np.zeros(3), R0)
+    plant = builder.AddSystem(HoveringAuvPlant(config, setting=setting))
     for name, value in (("u1_B", u1), ("u2_W", u2)):
         source = builder.AddSystem(ConstantVectorSource(value))
         builder.Connect(source.get_output_port(), plant.GetInputPort(name))
@@ -231,17 +232,22 @@ def test_constant_body_acceleration_is_tracked_over_an_outer_step() -> None:
 
 def test_bad_constructor_arguments_name_the_parameter() -> None:
     with pytest.raises(ValueError, match=r"^outer_period: must be > 0, got 0\.0$"):
-        LowLevelController(HoveringAuv(), 0.0, np.eye(3))
+        LowLevelController(HoveringAuv(), outer_period=0.0, initial_R_WB=np.eye(3))
     with pytest.raises(ValueError, match=r"^initial_R_WB: must be a rotation matrix"):
-        LowLevelController(HoveringAuv(), T, np.ones((3, 3)))
+        LowLevelController(HoveringAuv(), outer_period=T, initial_R_WB=np.ones((3, 3)))
     with pytest.raises(ScenarioError, match=r"^config\.max_thrust: must be > 0, got 0\.0$"):
-        LowLevelController(dataclasses.replace(HoveringAuv(), max_thrust=0.0), T, np.eye(3))
+        LowLevelController(
+            dataclasses.replace(HoveringAuv(), max_thrust=0.0),
+            outer_period=T,
+            initial_R_WB=np.eye(3),
+        )
 
 
 def test_saturation_ticks_count_the_ticks_whose_wrench_was_scaled() -> None:
     """An impossible acceleration command saturates every tick; a zero command none."""
     for u1, saturated in ((np.zeros(3), False), (np.array([50.0, 0.0, 0.0]), True)):
-        plant = HoveringAuvPlant(HoveringAuv(), T, np.zeros(3), np.zeros(3), np.zeros(3))
+        at_rest = PlantSetting(T, np.zeros(3), np.zeros(3), np.eye(3))
+        plant = HoveringAuvPlant(HoveringAuv(), setting=at_rest)
         context = plant.CreateDefaultContext()
         plant.GetInputPort("u1_B").FixValue(context, u1)
         plant.GetInputPort("u2_W").FixValue(context, np.zeros(3))

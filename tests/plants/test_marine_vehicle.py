@@ -14,11 +14,28 @@ from pydrake.systems.primitives import ConstantVectorSource
 from drake_uuv.models.so3 import exp_so3, log_so3
 from drake_uuv.plants.hovering_auv import configure_simulator
 from drake_uuv.plants.marine_vehicle import MarineVehicle
-from drake_uuv.plants.multibody_vehicle import MultibodyVehicle
 from drake_uuv.scenario.plants import HoveringAuv
 from drake_uuv.testing import fixed_context
+from tests.plants.multibody_vehicle import MultibodyVehicle
 
 OUTPUTS = {"p_WU": 3, "v_WU": 3, "R_WB": 9, "w_WB": 3, "nu_B": 6, "thrust": 8}
+
+
+def marine_vehicle(
+    config: HoveringAuv,
+    p0: np.ndarray,
+    v0: np.ndarray,
+    R0: np.ndarray,
+    w0: np.ndarray | None = None,
+) -> MarineVehicle:
+    """The vehicle at ``p_WU = p0``, ``v_WU = v0``, ``R_WB = R0``, ``ω_WB = w0`` (default 0)."""
+    return MarineVehicle(
+        config,
+        initial_position=p0,
+        initial_velocity=v0,
+        initial_R_WB=R0,
+        initial_angular_velocity=w0,
+    )
 
 
 def simulate(
@@ -46,7 +63,7 @@ def simulate(
 def test_ports_and_initial_outputs() -> None:
     R0 = RotationMatrix(RollPitchYaw(0.1, -0.3, 2.0)).matrix()
     p0, v0, w0 = np.array([1.0, -2.0, 3.0]), np.array([0.1, 0.2, -0.3]), np.array([0.4, -0.5, 0.6])
-    vehicle = MarineVehicle(HoveringAuv(), p0, v0, R0, w0)
+    vehicle = marine_vehicle(HoveringAuv(), p0, v0, R0, w0)
     assert vehicle.get_input_port().get_name() == "thrust_command"
     assert vehicle.get_input_port().size() == 8
     assert {vehicle.get_output_port(i).get_name(): vehicle.get_output_port(i).size()
@@ -68,7 +85,7 @@ def test_ports_and_initial_outputs() -> None:
 def test_derivatives_at_rest_are_the_thrust_wrench_through_the_mass_matrix() -> None:
     config = HoveringAuv()
     R0 = RotationMatrix(RollPitchYaw(0.0, 0.0, 0.7)).matrix()  # upright: no restoring moment
-    vehicle = MarineVehicle(config, np.zeros(3), np.zeros(3), R0)
+    vehicle = marine_vehicle(config, np.zeros(3), np.zeros(3), R0)
     thrust = np.array([10.0, -5.0, 3.0, 20.0, 15.0, -30.0, 7.0, 1.0])
     context = fixed_context(vehicle, thrust_command=thrust)
     x_dot = vehicle.EvalTimeDerivatives(context).CopyToVector()
@@ -79,7 +96,7 @@ def test_derivatives_at_rest_are_the_thrust_wrench_through_the_mass_matrix() -> 
 
 def test_commanded_thrust_is_saturated_inside_the_model() -> None:
     config = HoveringAuv()
-    vehicle = MarineVehicle(config, np.zeros(3), np.zeros(3), np.eye(3))
+    vehicle = marine_vehicle(config, np.zeros(3), np.zeros(3), np.eye(3))
     command = np.array([1000.0, -1000.0, 0.0, 50.0, 0.0, 0.0, -80.0, 0.0])
     context = fixed_context(vehicle, thrust_command=command)
     applied = np.array([77.55, -77.55, 0.0, 50.0, 0.0, 0.0, -77.55, 0.0])
@@ -92,7 +109,7 @@ def test_commanded_thrust_is_saturated_inside_the_model() -> None:
 
 def test_thrust_lag_is_first_order() -> None:
     config = HoveringAuv(thrust_time_constant=0.1)
-    vehicle = MarineVehicle(config, np.zeros(3), np.zeros(3), np.eye(3))
+    vehicle = marine_vehicle(config, np.zeros(3), np.zeros(3), np.eye(3))
     command = np.array([10.0, 10.0, 10.0, 10.0, 5.0, 5.0, 5.0, 5.0]) * np.array(
         [1, -1, 1, -1, 1, 1, 1, 1]
     )
@@ -104,7 +121,7 @@ def test_thrust_lag_is_first_order() -> None:
 def test_neutral_vehicle_at_rest_neither_drifts_nor_turns_over_60_s() -> None:
     config = HoveringAuv()
     R0 = RotationMatrix(RollPitchYaw(0.0, 0.0, 1.2)).matrix()
-    vehicle = MarineVehicle(config, np.array([1.0, 2.0, -3.0]), np.zeros(3), R0)
+    vehicle = marine_vehicle(config, np.array([1.0, 2.0, -3.0]), np.zeros(3), R0)
     (out,) = simulate(vehicle, config, 60.0)
     assert_allclose(out["p_WU"], [1.0, 2.0, -3.0], atol=1e-12)
     assert np.linalg.norm(log_so3(out["R_WB"].reshape(3, 3) @ R0.T)) < 1e-12
@@ -117,7 +134,7 @@ def test_buoyancy_restores_a_tilted_vehicle_to_upright() -> None:
     model = config.vehicle_model()
     roll, pitch = 0.5, -0.4
     R0 = RotationMatrix(RollPitchYaw(roll, pitch, 0.3)).matrix()
-    vehicle = MarineVehicle(config, np.zeros(3), np.zeros(3), R0)
+    vehicle = marine_vehicle(config, np.zeros(3), np.zeros(3), R0)
     # At release, ω̇_B = M_rot⁻¹ τ with the buoyancy's moment τ = (z_BG e_z) × (B k_B) about G
     # (k_B = R_WBᵀ e_z, the world's up in the body), which turns k_B back towards e_z.
     context = fixed_context(vehicle, thrust_command=np.zeros(8))
@@ -153,7 +170,7 @@ def test_damping_removes_energy_without_thrust(restoring: bool) -> None:
     # kinetic plus potential energy. C(ν) does no work, so only D(ν) changes either.
     config = HoveringAuv(center_of_buoyancy=[0.0, 0.0, 0.05 if restoring else 0.0])
     R0 = RotationMatrix(RollPitchYaw(0.3, 0.2, -0.1)).matrix()
-    vehicle = MarineVehicle(
+    vehicle = marine_vehicle(
         config, np.zeros(3), np.array([0.5, -0.3, 0.2]), R0, np.array([1.0, -2.0, 1.5])
     )
     samples = simulate(vehicle, config, 5.0, samples=50)
@@ -171,7 +188,7 @@ def test_without_damping_the_energy_is_conserved() -> None:
     # and added mass) and the restoring forces conserve kinetic plus potential energy.
     config = HoveringAuv(linear_damping=[0.0] * 6, quadratic_damping=[0.0] * 6)
     R0 = RotationMatrix(RollPitchYaw(0.3, 0.2, -0.1)).matrix()
-    vehicle = MarineVehicle(
+    vehicle = marine_vehicle(
         config, np.zeros(3), np.array([0.5, -0.3, 0.2]), R0, np.array([1.0, -2.0, 1.5])
     )
     kinetic, potential = energies(config, simulate(vehicle, config, 5.0, samples=10))
@@ -182,7 +199,7 @@ def test_without_damping_the_energy_is_conserved() -> None:
 def test_quaternion_off_the_unit_sphere_is_pulled_back() -> None:
     config = HoveringAuv()
     R0 = RotationMatrix(RollPitchYaw(0.3, 0.2, -0.1)).matrix()
-    vehicle = MarineVehicle(config, np.zeros(3), np.zeros(3), R0, np.array([1.0, -2.0, 1.5]))
+    vehicle = marine_vehicle(config, np.zeros(3), np.zeros(3), R0, np.array([1.0, -2.0, 1.5]))
     builder = DiagramBuilder()
     builder.AddSystem(vehicle)
     source = builder.AddSystem(ConstantVectorSource(np.zeros(8)))
@@ -235,7 +252,7 @@ def test_leaf_system_agrees_with_the_multibody_plant_to_a_micrometre(time_consta
     R0 = exp_so3(np.array([0.2, -0.1, 0.5]))
     final = {}
     for name, system in (
-        ("leaf", MarineVehicle(config, p0, v0, R0, w0)),
+        ("leaf", marine_vehicle(config, p0, v0, R0, w0)),
         ("multibody", MultibodyVehicle(config)),
     ):
         builder = DiagramBuilder()

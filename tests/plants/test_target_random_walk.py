@@ -7,14 +7,21 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import AddRandomInputs
 
 from drake_uuv.plants import TargetRandomWalk
+from drake_uuv.scenario import TargetConfig
 from drake_uuv.testing import discrete_update, fixed_context
 from tests.conftest import T
 
 W = np.array([[0.004, 0.001, 0.0], [0.001, 0.002, 0.0], [0.0, 0.0, 0.001]])
 
 
+def target_at(p0: np.ndarray, v0: np.ndarray) -> TargetRandomWalk:
+    """The target with acceleration covariance W starting at ``p0``, ``v0``."""
+    config = TargetConfig(list(p0), list(v0), acceleration_covariance=W.tolist())
+    return TargetRandomWalk(config, time_step=T)
+
+
 def test_ports_and_random_input() -> None:
-    target = TargetRandomWalk(T, W, np.array([1.0, 2.0, 2.0]), np.array([0.02, 0.1, 0.1]))
+    target = target_at(np.array([1.0, 2.0, 2.0]), np.array([0.02, 0.1, 0.1]))
     assert target.GetInputPort("acceleration_noise").size() == 3
     # Declared as a random port: Drake's AddRandomInputs finds it and feeds it.
     builder = DiagramBuilder()
@@ -26,7 +33,7 @@ def test_ports_and_random_input() -> None:
 
 def test_one_step_is_the_double_integrator_with_coloured_noise() -> None:
     p0, v0 = np.array([1.0, 2.0, 2.0]), np.array([0.02, 0.1, 0.1])
-    target = TargetRandomWalk(T, W, p0, v0)
+    target = target_at(p0, v0)
     xi = np.array([0.5, -1.5, 2.0])
     context = fixed_context(target, acceleration_noise=xi)
     assert_allclose(target.GetOutputPort("p_WT").Eval(context), p0)
@@ -39,7 +46,7 @@ def test_one_step_is_the_double_integrator_with_coloured_noise() -> None:
 @pytest.mark.parametrize("seed", [3])
 def test_acceleration_covariance_is_W(seed: int) -> None:
     """chol(W) ξ has covariance W: check the colouring on many fixed standard-normal draws."""
-    target = TargetRandomWalk(T, W, np.zeros(3), np.zeros(3))
+    target = target_at(np.zeros(3), np.zeros(3))
     rng = np.random.default_rng(seed)
     n = 4000
     accelerations = np.empty((n, 3))

@@ -1,10 +1,12 @@
 """The dual sonar alone: ports, noise-free geometry, noise scaling, the Y-noise moments."""
 
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 from pydrake.math import RollPitchYaw, RotationMatrix
 
 from drake_uuv.models.measurement import range_difference_noise
+from drake_uuv.scenario import SonarConfig
 from drake_uuv.sensors import DualSonar
 from drake_uuv.testing import fixed_context
 
@@ -13,6 +15,12 @@ eta = np.array([0.01, 0.04])
 R = RotationMatrix(RollPitchYaw(0.2, -0.1, 0.7)).matrix()
 p_WU = np.array([0.5, -1.0, 2.0])
 p_WT = np.array([3.0, 1.0, -1.0])
+
+
+def sonar_of(samples_per_step: int = 1, noise_model: str = "derived") -> DualSonar:
+    """The sonars with baseline b and variances η (no faults)."""
+    config = SonarConfig(b.tolist(), eta.tolist(), samples_per_step)
+    return DualSonar(config, noise_model=noise_model)
 
 
 def context_for(sonar: DualSonar, noise: np.ndarray):
@@ -26,7 +34,7 @@ def context_for(sonar: DualSonar, noise: np.ndarray):
 
 
 def test_ports() -> None:
-    sonar = DualSonar(b, eta, samples_per_step=4)
+    sonar = sonar_of(samples_per_step=4)
     sizes = {"p_WU": 3, "R_WB": 9, "p_WT": 3, "range_noise": 8}
     inputs = [sonar.get_input_port(i) for i in range(sonar.num_input_ports())]
     assert {p.get_name(): p.size() for p in inputs} == sizes
@@ -37,7 +45,7 @@ def test_ports() -> None:
 
 
 def test_noise_free_ranges_and_linear_measurement() -> None:
-    sonar = DualSonar(b, eta)
+    sonar = sonar_of()
     context = context_for(sonar, np.zeros(2))
     q_s = R @ b
     p_s1, p_s2 = p_WU + 0.5 * q_s, p_WU - 0.5 * q_s
@@ -50,7 +58,7 @@ def test_noise_free_ranges_and_linear_measurement() -> None:
 
 
 def test_noise_is_scaled_by_sqrt_eta_and_first_sample_forms_Y() -> None:
-    sonar = DualSonar(b, eta, samples_per_step=3)
+    sonar = sonar_of(samples_per_step=3)
     noise = np.array([1.0, -2.0, 0.5, 0.3, 1.1, -0.7])
     context = context_for(sonar, noise)
     clean = sonar.GetOutputPort("ranges").Eval(context_for(sonar, np.zeros(6)))
@@ -78,3 +86,17 @@ def test_derived_model_matches_the_noise_statistics() -> None:
     assert abs(noise.mean() - m) < 5 * np.sqrt(gamma / n)
     fourth = np.mean((noise - noise.mean()) ** 4)
     assert abs(noise.var() - gamma) < 5 * np.sqrt((fourth - gamma**2) / n)
+
+
+def test_m_and_gamma_follow_the_given_noise_model() -> None:
+    """The builder passes the estimator's noise model; the sonar publishes its m and Γ."""
+    noise = np.array([0.4, -0.9])
+    printed = sonar_of(noise_model="paper_printed")
+    context = context_for(printed, noise)
+    samples = printed.GetOutputPort("range_samples").Eval(context)
+    m, gamma = range_difference_noise("paper_printed", eta, samples**2)
+    assert_allclose(printed.GetOutputPort("m").Eval(context), [eta.sum()])
+    assert_allclose(printed.GetOutputPort("Gamma").Eval(context), [gamma])
+    assert m == eta.sum()
+    with pytest.raises(ValueError, match=r"noise_model: must be derived or paper_printed"):
+        sonar_of(noise_model="exact")

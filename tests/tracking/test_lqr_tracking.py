@@ -8,7 +8,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Adder, ConstantVectorSource, LogVectorOutput, Multiplexer
 
-from drake_uuv.attitude import TrajectoryAttitudeGenerator
+from drake_uuv.attitude import TrajectoryAttitudeGenerator, attitude_setting
 from drake_uuv.diagram import make_uuv_diagram
 from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.so3 import exp_so3
@@ -19,14 +19,22 @@ from drake_uuv.models.tracking_laws import (
     reference_feedforward,
     saturate_norm,
 )
-from drake_uuv.plants import KinematicUuvPlant
-from drake_uuv.scenario import Scenario, ScenarioError, load_scenario
+from drake_uuv.plants import KinematicUuvPlant, PlantSetting
+from drake_uuv.scenario import (
+    KinematicUuv,
+    Scenario,
+    ScenarioError,
+    TrajectoryAttitude,
+    load_scenario,
+)
 from drake_uuv.simulation import ClosedLoopSimulation
 from drake_uuv.testing import fixed_context
 from drake_uuv.tracking import LqrTrackingController, PaperTrackingController
 from tests.conftest import T
+from tests.tracking.controllers import lqr_controller, paper_controller
 
-b = np.array([-1.0, 1.0, 0.0])
+#: The paper's attitude setting: t, the baseline b = [−1, 1, 0].
+ATTITUDE = attitude_setting(load_scenario("paper"))
 q_star = np.array([-2.0, -2.0, 0.0])
 R = RotationMatrix(RollPitchYaw(0.1, 0.5, -0.8)).matrix()
 WEIGHTS = (1.0, 0.25, 0.1)  # the shipped defaults
@@ -92,8 +100,8 @@ def test_metrics_report_the_spectral_radius() -> None:
 
 
 def test_ports_are_the_paper_controllers_plus_the_plan() -> None:
-    controller = LqrTrackingController(T, q_star, *WEIGHTS)
-    paper = PaperTrackingController(T, 1.2, q_star)
+    controller = lqr_controller(q_star)
+    paper = paper_controller(q_star, 1.2)
     for i in range(paper.num_input_ports()):
         name = paper.get_input_port(i).get_name()
         assert controller.GetInputPort(name).size() == paper.get_input_port(i).size()
@@ -109,7 +117,7 @@ def test_one_step_is_the_closed_form_law() -> None:
     R1 = exp_so3(np.array([0.1, -0.2, 0.3])) @ R
     R2 = exp_so3(np.array([0.0, 0.3, 0.1])) @ R1
     x_hat = np.array([0.4, -1.0, 3.0, 0.2, -0.1, 0.05])
-    controller = LqrTrackingController(T, q_star, *WEIGHTS)
+    controller = lqr_controller(q_star)
     context = fixed_context(
         controller, x_TU_hat=x_hat, R_WB=R.ravel(), R_WB_plan=np.r_[R1.ravel(), R2.ravel()]
     )
@@ -175,8 +183,10 @@ def run_with_perfect_knowledge(
     With the target at rest and no noise, ``x_hat = [p − p̄, v]`` is the true relative state.
     """
     builder = DiagramBuilder()
-    uuv = builder.AddSystem(KinematicUuvPlant(T, np.zeros(3), np.zeros(3), np.eye(3)))
-    attitude = builder.AddSystem(TrajectoryAttitudeGenerator(T, b, rho, h_amplitude, h_frequency))
+    at_rest = PlantSetting(T, np.zeros(3), np.zeros(3), np.eye(3))
+    uuv = builder.AddSystem(KinematicUuvPlant(KinematicUuv(), setting=at_rest))
+    algorithm_2 = TrajectoryAttitude(rho=rho, h_amplitude=h_amplitude, h_frequency=h_frequency)
+    attitude = builder.AddSystem(TrajectoryAttitudeGenerator(algorithm_2, setting=ATTITUDE))
     builder.AddSystem(controller)
     target = builder.AddSystem(ConstantVectorSource(-np.r_[1.0, 2.0, 2.0, 0, 0, 0]))
     relative = builder.AddSystem(Adder(2, 6))
@@ -223,7 +233,7 @@ def residual_gain(K: np.ndarray) -> float:
 def test_perfect_knowledge_follows_a_smooth_algorithm_2_plan() -> None:
     """A slow Algorithm 2 plan: the error converges to within the feed-forward residual."""
     steps, slow_plan = 300, (1 / 480, 0.3, 1 / 120)
-    run = run_with_perfect_knowledge(LqrTrackingController(T, q_star, *WEIGHTS), steps, *slow_plan)
+    run = run_with_perfect_knowledge(lqr_controller(q_star), steps, *slow_plan)
     r = run["reference"]
     residual = np.max(np.linalg.norm(r[3:] - 3 * r[2:-1] + 3 * r[1:-2] - r[:-3], axis=1)) / (2 * T)
     bound = residual_gain(lqr_gain(T, *WEIGHTS)[0]) * residual
@@ -237,8 +247,8 @@ def test_perfect_knowledge_follows_a_smooth_algorithm_2_plan() -> None:
 
 def test_perfect_knowledge_on_the_papers_plan_stays_bounded_unlike_the_papers_law() -> None:
     steps = 300
-    lqr = run_with_perfect_knowledge(LqrTrackingController(T, q_star, *WEIGHTS), steps)
-    paper = run_with_perfect_knowledge(PaperTrackingController(T, 1.2, q_star), steps)
+    lqr = run_with_perfect_knowledge(lqr_controller(q_star), steps)
+    paper = run_with_perfect_knowledge(paper_controller(q_star, 1.2), steps)
     r = lqr["reference"]
     residual = np.max(np.linalg.norm(r[3:] - 3 * r[2:-1] + 3 * r[1:-2] - r[:-3], axis=1)) / (2 * T)
     assert np.max(lqr["error"][50:]) <= residual_gain(lqr_gain(T, *WEIGHTS)[0]) * residual
@@ -251,7 +261,7 @@ def test_perfect_knowledge_on_the_papers_plan_stays_bounded_unlike_the_papers_la
 
 
 def test_without_feedforward_the_law_lags() -> None:
-    lagging = LqrTrackingController(T, q_star, *WEIGHTS, feedforward=False)
+    lagging = lqr_controller(q_star, feedforward=False)
     run = run_with_perfect_knowledge(lagging, 300, 1 / 480, 0.3, 1 / 120)
     assert np.min(run["error"][100:]) > 1e-3
 
@@ -305,7 +315,6 @@ def test_shipped_scenario_holds_the_defaults() -> None:
 @pytest.mark.parametrize(
     "override, message",
     [
-        ("tracking=!Pid", r"^tracking: unknown variant !Pid \(known: !PaperTracking, !LqrTracking\)"),
         ("tracking.position_weight=0", r"^tracking.position_weight: must be > 0, got 0"),
         ("tracking.velocity_weight=-1", r"^tracking.velocity_weight: must be ≥ 0, got -1"),
         ("tracking.input_weight=0.0", r"^tracking.input_weight: must be > 0, got 0.0"),

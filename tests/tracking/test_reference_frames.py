@@ -7,17 +7,19 @@ import pytest
 from numpy.testing import assert_allclose
 from pydrake.math import RollPitchYaw, RotationMatrix
 
+from drake_uuv.models.information import TrackingPlanningModel
 from drake_uuv.models.so3 import exp_so3
 from drake_uuv.models.tracking_laws import (
     desired_relative_positions,
     heading_rotation,
     reference_rotation,
 )
-from drake_uuv.scenario import ScenarioError, load_scenario
+from drake_uuv.scenario import LqrTracking, PaperTracking, ScenarioError, load_scenario
 from drake_uuv.simulation import simulate
 from drake_uuv.testing import fixed_context
-from drake_uuv.tracking import LqrTrackingController, PaperTrackingController
+from drake_uuv.tracking import TrackingSetting
 from tests.conftest import T
+from tests.tracking.controllers import lqr_controller, paper_controller
 
 q_star = np.array([-10.0, -10.0, 0.0])
 
@@ -57,7 +59,7 @@ def test_paper_law_uses_the_rotated_q_star(frame: str) -> None:
     """In the body frame the paper's law holds q = R q*; for another frame F, q = R_WF q*."""
     R = RotationMatrix(RollPitchYaw(0.4, 0.2, -0.7)).matrix()
     x_hat = np.array([0.4, -1.0, 3.0, 0.2, -0.1, 0.05])
-    controller = PaperTrackingController(T, 1.2, q_star, reference_frame=frame)
+    controller = paper_controller(q_star, 1.2, reference_frame=frame)
     context = fixed_context(controller, x_TU_hat=x_hat, R_WB=R.ravel())
     r = reference_rotation(R, frame) @ q_star
     a = -(2 * 1.2 / T**2) * (x_hat[:3] - r) - (2 / T) * x_hat[3:]
@@ -70,12 +72,12 @@ def test_lqr_in_the_world_frame_has_no_feedforward_from_turning() -> None:
     R1 = exp_so3(np.array([0.5, -0.2, 0.3])) @ R
     R2 = exp_so3(np.array([0.1, 0.4, -0.6])) @ R1
     x_hat = np.r_[q_star, np.zeros(3)]  # exactly on the reference, at rest
-    controller = LqrTrackingController(T, q_star, 1.0, 0.25, 0.1, reference_frame="world")
+    controller = lqr_controller(q_star, reference_frame="world")
     context = fixed_context(
         controller, x_TU_hat=x_hat, R_WB=R.ravel(), R_WB_plan=np.r_[R1.ravel(), R2.ravel()]
     )
     assert_allclose(controller.GetOutputPort("u1_W").Eval(context), 0.0, atol=1e-12)
-    body = LqrTrackingController(T, q_star, 1.0, 0.25, 0.1)
+    body = lqr_controller(q_star)
     context = fixed_context(
         body, x_TU_hat=np.r_[R @ q_star, 0, 0, 0], R_WB=R.ravel(),
         R_WB_plan=np.r_[R1.ravel(), R2.ravel()],
@@ -99,3 +101,20 @@ def test_bad_frame_is_named() -> None:
         match=r"^tracking.reference_frame: must be one of body, world, heading, got 'up'",
     ):
         load_scenario("paper", ["tracking.reference_frame=up"])
+
+
+def test_the_laws_say_what_a_planner_may_assume() -> None:
+    """q* when it turns with the body, and the reference lag: none when the LQR law feeds
+    the plan forward (it lands on R(k+1) q*), one step otherwise (it aims at R(k) q*)."""
+    body = (-2.0, -2.0, 0.0)
+    assert PaperTracking().planning_model() == TrackingPlanningModel(body, reference_lag=1)
+    assert LqrTracking().planning_model() == TrackingPlanningModel(body, reference_lag=0)
+    assert LqrTracking(feedforward=False).planning_model().reference_lag == 1
+    for frame in ("world", "heading"):
+        for law in (PaperTracking(reference_frame=frame), LqrTracking(reference_frame=frame)):
+            assert law.planning_model().desired_relative_position_B is None
+
+
+def test_a_bad_setting_names_the_field() -> None:
+    with pytest.raises(ValueError, match=r"^time_step: must be > 0, got -0.5$"):
+        TrackingSetting(time_step=-0.5)

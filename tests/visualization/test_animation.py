@@ -171,7 +171,9 @@ def _fix_inputs(system: LiveMeshcatVisualizer, context, frame: SceneFrame) -> No
 
 
 def test_live_visualizer_ports_and_drawing(short_log, meshcat) -> None:
-    system = LiveMeshcatVisualizer(meshcat, BASELINE_B, publish_period=0.5, trail_length=3)
+    system = LiveMeshcatVisualizer(
+        meshcat, baseline_B=BASELINE_B, publish_period=0.5, trail_length=3
+    )
     sizes = {
         system.get_input_port(i).get_name(): system.get_input_port(i).size()
         for i in range(system.num_input_ports())

@@ -1,17 +1,19 @@
 """An independent model of the vehicle in Drake's MultibodyPlant, to cross-check MarineVehicle.
 
+It lives beside its test (``test_marine_vehicle.py``) as that test's independent formulation:
+it is not a plant of the closed loop (no ``u1_B``, ``u2_W`` inputs; it cannot hold added mass).
+
 One free rigid body; gravity from the plant's gravity field; 8 ``Propeller`` s for the
 thrusters; buoyancy at the centre of buoyancy and the damping ``D(ν) ν`` applied as
 ``ExternallyAppliedSpatialForce`` s (a world-frame force at a body point), merged with the
 propellers' forces by an ``ExternallyAppliedSpatialForceMultiplexer``. Saturation and the
 thrust lag are Drake's ``Saturation`` and ``FirstOrderLowPassFilter``.
 
-What this model does *not* hold: added mass. Drake has no hydrodynamics (its issue #19440 is
-open) and ``SpatialInertia`` holds one scalar mass, so an anisotropic ``M_A`` cannot live in
-it. The cross-check therefore runs both models with ``added_mass`` set to zero; the
-rigid-body dynamics (including the Coriolis terms of a centre of gravity away from the body
-origin), the kinematics, the thrust map, the restoring forces and the damping are then each
-computed by different code.
+What this model does *not* hold: added mass. Drake has no hydrodynamics and ``SpatialInertia``
+holds one scalar mass, so an anisotropic ``M_A`` cannot live in it. The cross-check therefore
+runs both models with ``added_mass`` set to zero; the rigid-body dynamics (including the
+Coriolis terms of a centre of gravity away from the body origin), the kinematics, the thrust
+map, the restoring forces and the damping are then each computed by different code.
 """
 
 import numpy as np
