@@ -40,7 +40,7 @@ def run_information(log: dict[str, np.ndarray], scenario: Scenario) -> np.ndarra
     trajectory; a sonar without a return (``sonar_status`` not VALID) contributes nothing.
 
     Summed over runs it gives the Monte Carlo PCRLB (:func:`~drake_uuv.models.pcrlb.
-    pcrlb_monte_carlo`, see :mod:`drake_uuv.montecarlo`).
+    pcrlb_monte_carlo`, see :mod:`drake_uuv.studies.statistics`).
     """
     available = log["sonar_status"] == VALID if "sonar_status" in log else None
     return measurement_information(

@@ -6,16 +6,18 @@ tables, and a plain statement of which of the paper's claims reproduce.
     python scripts/make_results_page.py --resume         # reuse finished runs in --work
 
 Studies are kept in ``--work`` (default ``out/results``); figures go to ``docs/figures/``.
-Every sentence that states a number takes it from these runs.
+Every sentence that states a number takes it from these runs. The groups it runs and its
+later sections (``SECTIONS``) come from the repository's ``studies/`` folder, loaded as
+``drake-uuv compare`` loads it (:func:`drake_uuv.studies.load_studies`).
 """
 
 import argparse
+import importlib
 import json
 import math
 from pathlib import Path
 
 import numpy as np
-from results_sections import SECTIONS
 
 from drake_uuv.analysis.figures import (
     error_figure,
@@ -31,17 +33,22 @@ from drake_uuv.scenario import ALPHA_PROVEN_INTERVAL, load_scenario
 from drake_uuv.simulation import ClosedLoopSimulation
 from drake_uuv.studies import (
     Study,
-    compare,
+    compare_groups,
     format_summary,
+    load_groups,
+    load_studies,
     markdown_table,
     ratio_tables,
     run_study,
-    selected_variants,
+    select_groups,
 )
 
 ROOT = Path(__file__).resolve().parent.parent
+STUDIES = ROOT / "studies"
 # The comparison groups this page discusses (drake-uuv compare --group ...).
 GROUPS = ["attitude_noise", "alpha", "estimator", "tracking"]
+# The later sections, one module each in studies/results_sections/.
+SECTIONS = importlib.import_module(f"{load_studies(STUDIES).__name__}.results_sections").SECTIONS
 LONG_STEPS = 2000
 LONG_SEEDS = 8
 
@@ -355,7 +362,8 @@ def main() -> None:
     result = run_study(study, **execution)
     bands = (args.work / "montecarlo" / "figures" / "bands.png").read_bytes()
     write_atomic(args.docs / "figures" / "bands.png", lambda f: f.write(bands))
-    compared = compare(selected_variants(GROUPS), args.work / "compare", args.runs, **execution)
+    groups = select_groups(load_groups(STUDIES), GROUPS)
+    compared = compare_groups(groups, args.work / "compare", args.runs, **execution)
     rows = {variant.name: r.summary for variant, r in compared}
     table = markdown_table([(variant, r.summary) for variant, r in compared])
     summary = result.summary

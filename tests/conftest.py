@@ -1,13 +1,23 @@
 """Shared fixtures and constants of the tests.
 
 The constants are the paper's simulation (§IV) unless a name says otherwise; import them with
-``from tests.conftest import T, W, ETA``.
+``from tests.conftest import T, W, ETA``. The repository's study groups and their constants
+(the ``studies/`` folder beside the package) are reached through :func:`study_module`, which
+loads them as ``drake-uuv compare`` does.
 """
+
+import importlib
+from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import pytest
 
 from drake_uuv.scenario import Scenario, load_scenario
+from drake_uuv.studies import load_studies
+
+#: The repository's studies folder: the groups of ``drake-uuv compare``, the results page.
+STUDIES = Path(__file__).resolve().parents[1] / "studies"
 
 #: The paper's sampling period t [s].
 T = 0.5
@@ -25,3 +35,11 @@ X0 = np.array([-1.8, -2.3, 0.4, 0.05, 0.0, -0.02])
 def paper() -> Scenario:
     """The shipped paper scenario."""
     return load_scenario("paper")
+
+
+def study_module(name: str = "") -> ModuleType:
+    """The repository's ``studies/`` package (``name`` empty) or one of its modules
+    (``"vehicle"``, ``"paired"``, ...), loaded by the loader of ``drake-uuv compare``
+    (:func:`drake_uuv.studies.load_studies`)."""
+    package = load_studies(STUDIES)
+    return importlib.import_module(f"{package.__name__}.{name}") if name else package

@@ -329,7 +329,7 @@ def band_figure(
     """Monte Carlo bands: median and 5–95 % of each error norm against k, and the mean NEES.
 
     ``norms`` maps ``position``, ``velocity``, ``tracking`` and ``nees`` to (runs × steps)
-    arrays, as collected by :mod:`drake_uuv.montecarlo`. ``bounds`` (optional) maps
+    arrays, as collected by :mod:`drake_uuv.studies.runner`. ``bounds`` (optional) maps
     ``position`` and ``velocity`` to the per-step bound (:func:`bound_curves` of the Monte
     Carlo PCRLB), drawn in black beside the RMS error over runs (dashed), its like.
     """

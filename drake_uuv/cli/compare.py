@@ -1,8 +1,13 @@
 """``drake-uuv compare``: Monte Carlo tables of scenario variants (``compare.md``, ``.csv``).
 
-The comparison itself is :func:`drake_uuv.studies.compare`; this module parses options,
-turns :class:`~drake_uuv.studies.MonteCarloError` (a bad ``--group``, ``--runs``, …) into a
-usage error (status 2), and prints the Markdown tables.
+The groups of variants are not part of the package: they are read from a studies folder
+(``--studies DIR``, by default the ``studies/`` folder of the checkout the package was
+imported from; see :mod:`drake_uuv.studies.groups`). Without ``--group`` the paper's groups
+run; ``--group list`` lists every group and runs nothing. Before it starts, the command prints
+the number of runs and an estimate of the wall time from one timed run of each configuration
+(:mod:`drake_uuv.studies.estimate`). The comparison itself is :func:`drake_uuv.studies.compare`;
+:class:`~drake_uuv.studies.MonteCarloError` (a bad ``--group``, ``--studies``, ``--runs``, …)
+becomes a usage error (status 2).
 """
 
 import argparse
@@ -15,22 +20,39 @@ from drake_uuv.cli.options import (
     add_scenario_options,
     execution_options,
 )
-from drake_uuv.studies import VARIANT_GROUPS, MonteCarloError, compare, selected_variants
+from drake_uuv.studies import (
+    LIST,
+    BaseScenario,
+    MonteCarloError,
+    compare_groups,
+    default_studies_folder,
+    default_workers,
+    estimate_wall_time,
+    format_estimate,
+    format_group_list,
+    group_variants,
+    load_groups,
+    select_groups,
+    variant_studies,
+)
 
 
 def _compare(args: argparse.Namespace) -> int:
     out = Path(args.out)
     try:
-        variants = selected_variants(args.groups)
-        compare(
-            variants,
-            out,
-            args.runs,
-            scenario=args.scenario,
-            base_overrides=args.overrides,
-            seed=args.seed,
-            **execution_options(args),
-        )
+        if args.runs < 1:  # before the runs are listed or timed
+            raise MonteCarloError(f"--runs: must be ≥ 1, got {args.runs}")
+        groups = load_groups(args.studies)
+        if args.groups and LIST in args.groups:
+            print(format_group_list(groups, args.runs))
+            return 0
+        chosen = select_groups(groups, args.groups)
+        base = BaseScenario(args.scenario, tuple(args.overrides), args.seed)
+        studies = variant_studies(group_variants(chosen), out, args.runs, base)
+        workers = default_workers() if args.workers is None else args.workers
+        workers = None if args.scheduler else workers
+        print(format_estimate(estimate_wall_time(studies, workers, args.resume)), flush=True)
+        compare_groups(chosen, out, args.runs, base=base, **execution_options(args))
     except MonteCarloError as e:
         raise UsageError(str(e)) from e
     except KeyboardInterrupt:
@@ -45,8 +67,12 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     """Registers ``drake-uuv compare``."""
     parser = subparsers.add_parser(
         "compare",
-        help="Monte Carlo tables: attitude × noise model, an α sweep, estimator × attitude "
-        "mode against the PCRLB",
+        help="Monte Carlo tables of named groups of scenario variants (default: the paper's "
+        "groups; --group list shows them all)",
+        description="Runs every variant of the chosen groups as Monte Carlo studies and writes "
+        "OUT/compare.md and OUT/compare.csv. It first prints the runs and an estimate of the "
+        "wall time, from one timed run of each configuration (plant, estimator, particles, "
+        "attitude, steps) among the variants.",
     )
     add_scenario_options(parser)
     add_execution_options(parser)
@@ -55,7 +81,20 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         dest="groups",
         action="append",
         default=None,
-        help=f"variant group to run (repeatable; default all: {', '.join(VARIANT_GROUPS)})",
+        metavar="NAME",
+        help="variant group to run (repeatable); 'list' prints every group (name, variants, "
+        "runs at --runs, what it measures) and runs nothing; default: the paper's groups, "
+        "those that test its claims (attitude_noise, alpha, tracking in the repository's "
+        "studies/)",
+    )
+    parser.add_argument(
+        "--studies",
+        type=Path,
+        default=default_studies_folder(),
+        metavar="DIR",
+        help="folder of the study groups, a package whose __init__.py defines GROUPS "
+        "(default: the studies/ folder of the checkout drake_uuv was imported from, "
+        "%(default)s)",
     )
     parser.add_argument("--out", default="out/compare", help="output folder (default: out/compare)")
     parser.set_defaults(handler=_compare)

@@ -1,7 +1,6 @@
-"""scripts/study_information_attitude.py: pairing by seed, the comparison and its checks."""
+"""studies/paired.py: pairing by seed, the comparison and its checks."""
 
 import csv
-import importlib.util
 import json
 import math
 from pathlib import Path
@@ -9,10 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "study_information_attitude.py"
-_spec = importlib.util.spec_from_file_location("study_information_attitude", SCRIPT)
-study = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(study)
+from tests.conftest import study_module
+
+study = study_module("paired")
 
 
 def write_runs(folder: Path, rows: list[dict[str, float]]) -> Path:

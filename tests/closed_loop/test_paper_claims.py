@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from drake_uuv.analysis.stats import bootstrap_interval, wilson_interval
-from drake_uuv.montecarlo import DIVERGENCE_THRESHOLD, Study, StudyResult, run_studies
 from drake_uuv.scenario import load_scenario
+from drake_uuv.studies import DIVERGENCE_THRESHOLD, Study, StudyResult, run_studies
 
 pytestmark = pytest.mark.slow
 

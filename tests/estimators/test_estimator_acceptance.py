@@ -1,7 +1,7 @@
 """Acceptance of the estimators on the Drake diagram: seeded Monte Carlo against the PCRLB.
 
 Every run is the whole closed loop (:class:`~drake_uuv.simulation.ClosedLoopSimulation`); the
-bounds are those the studies report (:mod:`drake_uuv.montecarlo`). Ratios carry a standard
+bounds are those the studies report (:mod:`drake_uuv.studies`). Ratios carry a standard
 error from the run-to-run spread, and every tolerance is a multiple of it.
 """
 

@@ -1,7 +1,7 @@
 """The estimators at an easy and a hard regime: seeded Monte Carlo in the Drake loop.
 
 The regimes are those of the ``regimes`` comparison group
-(:data:`drake_uuv.studies.comparison.REGIMES`): the paper's (σ = 0.1 m, q* = [−2, −2, 0] in
+(``REGIMES`` of ``studies/regimes.py``): the paper's (σ = 0.1 m, q* = [−2, −2, 0] in
 the body frame), σ = 0.5 m at the same standoff, where the paper's KF is far from the
 posterior Cramér–Rao bound and the particle filter reaches it, and σ = 1 m, where the EKF and
 UKF reach it only through their particle bridge. Runs are shortened (300
@@ -17,9 +17,12 @@ import pytest
 
 from drake_uuv.scenario import load_scenario
 from drake_uuv.studies import Study, run_study
-from drake_uuv.studies.comparison import REGIME_ESTIMATORS, REGIMES
+from tests.conftest import study_module
 
 pytestmark = pytest.mark.slow
+
+REGIMES = study_module("regimes").REGIMES
+REGIME_ESTIMATORS = study_module("regimes").REGIME_ESTIMATORS
 
 SHORT = ("steps=300", "steady_state_start=150")
 SEED = 2000  # away from the studies' seeds 0 … 39

@@ -38,7 +38,7 @@ LAYERS: list[set[str]] = [
     },
     {"diagram", "monitor", "signals"},  # the closed loop
     {"simulation", "metrics", ROOT},  # runs of it (the facade exports ClosedLoopSimulation)
-    {"analysis", "studies", "visualization", "montecarlo", "compare"},  # many runs, pictures
+    {"analysis", "studies", "visualization"},  # many runs, pictures
     {"cli"},  # the command line, on top of everything
 ]
 
@@ -51,7 +51,8 @@ SUBLAYERS: dict[str, list[set[str]]] = {
         {"statistics"},
         {"report"},
         {"execution"},
-        {"comparison"},
+        {"comparison", "estimate"},
+        {"groups"},
         {ROOT},
     ],
     "cli": [

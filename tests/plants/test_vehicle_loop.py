@@ -15,7 +15,11 @@ from drake_uuv.metrics import errors
 from drake_uuv.models.so3 import log_so3
 from drake_uuv.models.statistics import chi2_ppf, nees_band
 from drake_uuv.models.vehicle_envelope import followable_target_scale
-from drake_uuv.studies.comparison import scenario_feasible_limits, vehicle_variants
+from tests.conftest import study_module
+
+vehicle_study = study_module("vehicle")
+scenario_feasible_limits = vehicle_study.scenario_feasible_limits
+vehicle_variants = vehicle_study.vehicle_variants
 
 # Every test here runs the hovering UUV's closed loop (seconds each).
 pytestmark = pytest.mark.slow

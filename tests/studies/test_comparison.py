@@ -1,47 +1,21 @@
-"""Comparison tables: variants and groups, the Markdown and CSV tables, the written files."""
+"""Comparison tables: the Markdown and CSV tables, the ratio tables, the written files."""
 
 import csv
 import json
-import math
 
 import numpy as np
 import pytest
 
-from drake_uuv.diagram import make_uuv_diagram
-from drake_uuv.models.vehicle_limits import utilisation_budget
-from drake_uuv.scenario import (
-    ALPHA_PROVEN_INTERVAL,
-    Ekf,
-    HoveringAuv,
-    InformationSeeking,
-    KinematicUuv,
-    LqrTracking,
-    PaperKf,
-    Scenario,
-    TrajectoryAttitude,
-    load_scenario,
-    variants,
-)
-from drake_uuv.simulation import ClosedLoopSimulation
 from drake_uuv.studies import (
-    ESTIMATOR_GROUP,
-    VARIANT_GROUPS,
-    MonteCarloError,
+    BaseScenario,
     StudyResult,
     Variant,
-    alpha_sweep_variants,
     compare,
     csv_table,
     markdown_table,
     ratio_tables,
-    selected_variants,
 )
 from drake_uuv.studies import comparison as comparison_module
-from drake_uuv.studies.comparison import (
-    VEHICLE_ANGULAR_RATE,
-    VEHICLE_SPEED_BUDGET,
-    attitude_vehicle_variants,
-)
 from tests.studies.study_helpers import SHORT
 
 
@@ -50,31 +24,6 @@ def _summary(runs: int = 4, **values) -> dict:
     summary["diverged_fraction"] = 0.25
     summary["diverged_fraction_ci95"] = [0.05, 0.7]
     return {**summary, **values}
-
-
-def test_selected_variants_are_the_groups_in_order_and_unknown_groups_are_refused():
-    everything = selected_variants(None)
-    assert everything == [v for make in VARIANT_GROUPS.values() for v in make()]
-    assert selected_variants(["tracking", "alpha"]) == (
-        VARIANT_GROUPS["tracking"]() + VARIANT_GROUPS["alpha"]()
-    )
-    with pytest.raises(MonteCarloError, match=r"^--group: unknown group 'bogus' \(known: "):
-        selected_variants(["alpha", "bogus"])
-
-
-def test_variant_names_are_unique_and_alphas_are_labelled_by_the_proven_interval():
-    names = [variant.name for variant in selected_variants(None)]
-    assert len(names) == len(set(names))
-    low, high = ALPHA_PROVEN_INTERVAL
-    for variant in alpha_sweep_variants([0.29, 0.3, 1.7, 1.71]):
-        alpha = float(variant.name.removeprefix("alpha-"))
-        assert variant.note == ("proven" if low < alpha < high else "unproven")
-    estimator = VARIANT_GROUPS["estimator"]()
-    # Every estimator variant the scenario knows, under each of the paper's three attitudes.
-    assert len(estimator) == len(variants(Scenario, "estimator")) * 3
-    assert {v.overrides[0] for v in estimator} == {
-        f"estimator=!{tag}" for tag in variants(Scenario, "estimator")
-    }
 
 
 def test_markdown_table_one_table_per_group_with_notes_only_where_given():
@@ -102,47 +51,92 @@ def test_csv_table_has_intervals_and_bounds_and_blank_for_missing():
     assert row["velocity_rmse"] == "" and row["pcrlb_position_rmse"] == "0.1"
 
 
-def test_ratio_tables_place_each_estimator_and_mode():
+def test_ratio_tables_place_each_marked_estimator_and_mode():
+    def row(name, estimator, attitude, marked=True):
+        overrides = (f"estimator=!{estimator}", f"attitude=!{attitude}")
+        return Variant(name, "grid", overrides, ratio_table=marked)
+
     rows = [
         (
-            Variant("kf-fixed", ESTIMATOR_GROUP, ("estimator=!PaperKf", "attitude=!FixedAttitude")),
+            row("kf-fixed", "PaperKf", "FixedAttitude"),
             _summary(position_rmse_over_pcrlb=2.0, velocity_rmse_over_pcrlb=1.5),
         ),
         (
-            Variant("ekf-random", ESTIMATOR_GROUP, ("estimator=!Ekf", "attitude=!RandomAttitude")),
+            row("ekf-random", "Ekf", "RandomAttitude"),
             _summary(position_rmse_over_per_run_pcrlb=1.02),
+        ),
+        # Not marked: in no ratio table, although it chooses an estimator and an attitude.
+        (
+            row("ukf-fixed", "Ukf", "FixedAttitude", marked=False),
+            _summary(position_rmse_over_pcrlb=9.0),
         ),
     ]
     text = ratio_tables(rows)
     assert "| estimator | fixed | random |" in text
     assert "| kf | 2 / 1.5 | — / — |" in text
     assert "| ekf | — / — | 1.02 / — |" in text
+    assert "ukf" not in text and "| 9 " not in text
     assert ratio_tables([(Variant("a", "other", ()), _summary())]) == ""
 
 
-def test_compare_writes_both_files_and_states_its_command(tmp_path, monkeypatch):
-    calls = []
+def test_ratio_tables_refuse_a_marked_variant_without_estimator_and_attitude():
+    rows = [(Variant("odd", "grid", ("estimator=!Ekf",), ratio_table=True), _summary())]
+    with pytest.raises(
+        ValueError,
+        match=r"^ratio_table: variant 'odd' must set both estimator=!Tag and attitude=!Tag, "
+        r"got 'estimator=!Ekf'$",
+    ):
+        ratio_tables(rows)
 
-    def fake_run_studies(studies, **options):
+
+def _fake_run_studies(calls):
+    def run(studies, **options):
         calls.append(options)
         return [
             StudyResult(s, np.arange(s.runs), [], np.empty((s.runs, 0)), None, _summary(), s.runs)
             for s in studies
         ]
 
-    monkeypatch.setattr(comparison_module, "run_studies", fake_run_studies)
-    variants = VARIANT_GROUPS["tracking"]()
-    result = compare(variants, tmp_path, runs=4, base_overrides=SHORT, workers=2)
+    return run
+
+
+TWO = [
+    Variant("first", "pair", ("attitude=!FixedAttitude",)),
+    Variant("second", "pair", ("tracking=!LqrTracking", "tracking.max_acceleration=7")),
+]
+
+
+def test_compare_writes_both_files_and_states_its_command(tmp_path, monkeypatch):
+    calls = []
+    monkeypatch.setattr(comparison_module, "run_studies", _fake_run_studies(calls))
+    base = BaseScenario(overrides=SHORT, seed=7)
+    result = compare(TWO, tmp_path, runs=4, base=base, groups=["a", "b"], workers=2)
     assert calls == [{"workers": 2, "figures": False}]
-    assert [variant for variant, _ in result] == variants
-    assert result[0][1].study.out_dir == tmp_path / "studies" / variants[0].name
-    assert result[0][1].study.scenario.steps == 80
+    assert [variant for variant, _ in result] == TWO
+    study = result[1][1].study
+    assert study.out_dir == tmp_path / "studies" / "second"
+    assert study.scenario.steps == 80 and study.scenario.random_seed == 7
+    assert study.scenario.tracking.max_acceleration == 7
     markdown = (tmp_path / "compare.md").read_text()
     assert markdown.startswith("# Comparison (paper scenario, 4 runs per variant)\n\n")
-    command = "drake-uuv compare --runs 4 --set steps=80 --set steady_state_start=40"
-    assert f"Made by `{command} --group tracking`." in markdown
-    assert "Cramér–Rao" not in markdown  # no estimator group: no ratio tables
-    assert (tmp_path / "compare.csv").read_text().count("\n") == 1 + len(variants)
+    command = "drake-uuv compare --runs 4 --seed 7 --set steps=80 --set steady_state_start=40"
+    assert f"Made by `{command} --group a --group b`." in markdown
+    assert "Cramér–Rao" not in markdown  # no variant marked ratio_table: no ratio tables
+    assert (tmp_path / "compare.csv").read_text().count("\n") == 1 + len(TWO)
+
+
+def test_compare_without_groups_names_itself_and_adds_ratio_tables_of_marked_rows(
+    tmp_path, monkeypatch
+):
+    monkeypatch.setattr(comparison_module, "run_studies", _fake_run_studies([]))
+    marked = Variant(
+        "ekf-fixed", "grid", ("estimator=!Ekf", "attitude=!FixedAttitude"), ratio_table=True
+    )
+    compare([*TWO, marked], tmp_path, runs=2, base=BaseScenario("paper", SHORT))
+    markdown = (tmp_path / "compare.md").read_text()
+    assert "Made by `drake_uuv.studies.compare` (3 variants)." in markdown
+    assert "## Estimators against the posterior Cramér–Rao bound" in markdown
+    assert "| ekf | — / — |" in markdown
 
 
 @pytest.mark.slow
@@ -151,7 +145,7 @@ def test_compare_runs_each_variant_and_tabulates_its_summary(tmp_path):
         Variant("fixed", "attitude", ("attitude=!FixedAttitude",)),
         Variant("trajectory", "attitude", ("attitude=!TrajectoryAttitude",), note="paper"),
     ]
-    compare(variants, tmp_path, runs=2, base_overrides=SHORT, workers=1, progress=False)
+    compare(variants, tmp_path, 2, BaseScenario(overrides=SHORT), workers=1, progress=False)
     markdown = (tmp_path / "compare.md").read_text()
     assert "| fixed |" in markdown and "| trajectory | paper |" in markdown
     rows = list(csv.DictReader((tmp_path / "compare.csv").read_text().splitlines()))
@@ -165,114 +159,3 @@ def test_compare_runs_each_variant_and_tabulates_its_summary(tmp_path):
         assert not (folder / "figures").exists()  # compare draws no band figures
     fixed = json.loads((tmp_path / "studies" / "fixed" / "study.json").read_text())
     assert fixed["scenario"]["attitude"] == {"variant": "FixedAttitude"}
-
-
-BUDGET_ROWS = ("alg2", "alg2-0.1", "info-0.1", "alg2-0.2", "info-0.2", "alg2-0.39", "info-0.39")
-
-
-def test_attitude_group_pairs_each_budget_with_algorithm_2_limited_to_it_and_builds():
-    variants = VARIANT_GROUPS["attitude"]()
-    assert [v.name for v in variants] == [
-        f"{e}-{row}" for e in ("kf", "ekf") for row in BUDGET_ROWS
-    ]
-    for variant in variants:
-        scenario = load_scenario("paper", list(variant.overrides))
-        expected = {"kf": PaperKf, "ekf": Ekf}[variant.name.split("-")[0]]
-        assert type(scenario.estimator) is expected, variant.name
-        attitude = scenario.attitude
-        kind, _, budget = variant.name.partition("-")[2].partition("-")
-        if kind == "info":
-            assert type(attitude) is InformationSeeking
-            assert attitude.max_angle_per_step == float(budget)
-            assert variant.note == f"{budget} rad/step"
-        elif budget:
-            assert type(attitude) is TrajectoryAttitude
-            # The rate limit turns by at most the budget in one time step.
-            assert attitude.max_angular_rate * scenario.time_step == pytest.approx(
-                float(budget), rel=1e-15
-            )
-            assert variant.note == f"{budget} rad/step"
-        else:
-            assert type(attitude) is TrajectoryAttitude and attitude.max_angular_rate is None
-        make_uuv_diagram(scenario, log=False)  # every system of the variant builds and wires
-
-
-@pytest.mark.slow
-def test_attitude_group_rows_of_a_budget_turn_by_at_most_it_and_the_limit_binds():
-    rows = {v.name: v for v in VARIANT_GROUPS["attitude"]()}
-    peaks = {}
-    for name in ("kf-alg2", "kf-alg2-0.1", "kf-info-0.1", "ekf-info-0.2"):
-        scenario = load_scenario("paper", [*SHORT, *rows[name].overrides])
-        peaks[name] = ClosedLoopSimulation(scenario).run(seed=3).metrics["rotation_peak"]
-    # Unlimited, Algorithm 2 turns far more than 0.1 rad in some step (h(k) swings the
-    # baseline's elevation by ±0.5 |b| every 6 steps), so the limit of 0.1 rad binds ...
-    assert peaks["kf-alg2"] > 0.3
-    assert peaks["kf-alg2-0.1"] == pytest.approx(0.1, abs=1e-9)
-    # ... and the planner stays within its budget.
-    assert peaks["kf-info-0.1"] <= 0.1 + 1e-9
-    assert peaks["ekf-info-0.2"] <= 0.2 + 1e-9
-
-
-def test_attitude_vehicle_group_compares_at_the_vehicle_rate_on_both_plants():
-    variants = VARIANT_GROUPS["attitude_vehicle"]()
-    names = ["kinematic-alg2-0.15", "kinematic-info-0.15", "auv-alg2-0.15", "auv-info-0.15"]
-    assert [v.name for v in variants] == names
-    for variant in variants:
-        scenario = load_scenario("paper", list(variant.overrides))
-        plant = HoveringAuv if variant.name.startswith("auv") else KinematicUuv
-        assert type(scenario.plant) is plant and type(scenario.estimator) is PaperKf
-        assert type(scenario.tracking) is LqrTracking
-        assert scenario.tracking.reference_frame == "world"
-        assert scenario.tracking.max_acceleration == 0.6
-        # The target, and the filter's model of it, slowed to one the vehicle can follow.
-        np.testing.assert_allclose(
-            scenario.target.acceleration_covariance,
-            0.166 * np.asarray(load_scenario("paper").target.acceleration_covariance),
-            rtol=1e-12,
-        )
-        assert variant.note == "0.15 rad/step, W × 0.166"
-        if "-info-" in variant.name:
-            assert scenario.attitude.max_angle_per_step == pytest.approx(
-                VEHICLE_ANGULAR_RATE * scenario.time_step, rel=1e-15
-            )
-        else:
-            assert type(scenario.attitude) is TrajectoryAttitude
-            assert scenario.attitude.max_angular_rate == pytest.approx(VEHICLE_ANGULAR_RATE)
-        make_uuv_diagram(scenario, log=False)
-
-
-def test_vehicle_rate_and_acceleration_limit_leave_thrust_to_spare():
-    vehicle = HoveringAuv()
-    budget = utilisation_budget(
-        vehicle.vehicle_model(),
-        vehicle.allocator(),
-        acceleration=0.6,  # tracking.max_acceleration of the group's loop
-        speed=0.38,  # the speed its Bryson weight allows
-        angular_rate=VEHICLE_ANGULAR_RATE,
-        rate_step=VEHICLE_ANGULAR_RATE,
-        tilt=math.pi / 2,  # the largest restoring moment
-        attitude_bandwidth=vehicle.attitude_bandwidth,
-        attitude_damping_ratio=vehicle.attitude_damping_ratio,
-    )
-    assert 0.8 < budget["total"] < 0.85
-
-
-def test_attitude_vehicle_target_reaches_the_speed_budget_as_rms_final_speed():
-    """The group's slowed W: closed form of the RMS final speed (to the three digits the
-    group rounds the factor to), and a seeded sample of final speeds against it."""
-    paper = load_scenario("paper")
-    (row,) = [v for v in attitude_vehicle_variants() if v.name == "auv-info-0.15"]
-    scenario = load_scenario("paper", list(row.overrides))
-    v0 = np.asarray(paper.target.initial_velocity)
-    W = np.asarray(scenario.target.acceleration_covariance)
-    # Closed form: |v(0)|² + (N − 1) t² trace(s W) = 0.38², s rounded to three digits.
-    walk = (paper.steps - 1) * paper.time_step**2 * np.trace(W)
-    assert v0 @ v0 + walk == pytest.approx(VEHICLE_SPEED_BUDGET**2, rel=5e-3)
-    # Seeded: the targets' final speed, v(0) + t Σ a(j) over N − 1 steps, a ~ N(0, s W).
-    n, steps = 4000, paper.steps - 1
-    rng = np.random.default_rng(1)
-    sums = rng.standard_normal((n, 3)) * np.sqrt(steps * np.diag(W))  # Σ a(j), per axis
-    speed2 = np.sum((v0 + paper.time_step * sums) ** 2, axis=1)
-    variances = paper.time_step**2 * steps * np.diag(W)  # of each final velocity component
-    std = np.sqrt(np.sum(2.0 * variances**2 + 4.0 * v0**2 * variances) / n)
-    assert abs(speed2.mean() - (v0 @ v0 + walk)) < 4.0 * std

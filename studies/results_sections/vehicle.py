@@ -1,7 +1,7 @@
 """Results-page section "Does it survive a real vehicle?": the ``vehicle`` comparison group.
 
-Runs the group's studies (:func:`drake_uuv.studies.comparison.vehicle_variants`) under
-``work/vehicle`` through :func:`drake_uuv.studies.compare` (resume-able), one seeded run of
+Runs the group's studies (``vehicle_variants`` of ``studies/vehicle.py``) under ``work/vehicle``
+through :func:`drake_uuv.studies.compare_groups` (resume-able), one seeded run of
 each configuration on the vehicle (filter with the vehicle's navigation) for the
 attitude-tracking and thrust figures (``docs/figures/vehicle_*.png``), a figure of the
 feasible configuration's error and NEES per step under each way the filter accounts for the
@@ -35,14 +35,16 @@ from drake_uuv.models.vehicle_envelope import (  # noqa: E402
 )
 from drake_uuv.scenario import load_scenario  # noqa: E402
 from drake_uuv.simulation import ClosedLoopSimulation  # noqa: E402
-from drake_uuv.studies import compare  # noqa: E402
-from drake_uuv.studies.comparison import (  # noqa: E402
+from drake_uuv.studies import compare_groups  # noqa: E402
+from drake_uuv.studies.runner import NORMS  # noqa: E402
+from drake_uuv.studies.study import StudyResult  # noqa: E402
+
+from ..vehicle import (  # noqa: E402
+    VEHICLE_GROUP,
     scenario_feasible_limits,
     scenario_plan_max_tilt,
     vehicle_variants,
 )
-from drake_uuv.studies.runner import NORMS  # noqa: E402
-from drake_uuv.studies.study import StudyResult  # noqa: E402
 
 # The configurations shown side by side, and the seed of their figures.
 CONFIGURATIONS = ("paper", "feasible", "hull")
@@ -274,7 +276,7 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
 
     runs = min(runs, VEHICLE_RUNS)
     variants = vehicle_variants()
-    compared = compare(variants, work / "vehicle", runs, **execution)
+    compared = compare_groups([VEHICLE_GROUP], work / "vehicle", runs, **execution)
     n = {variant.name: _numbers(result) for variant, result in compared}
     _figures(docs)
     _motion_figure(n, docs, start)

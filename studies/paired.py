@@ -1,7 +1,7 @@
 """Paired per-seed comparison of two Monte Carlo study folders (their runs.csv).
 
     drake-uuv compare --group attitude --runs 100 --workers 2 --out out/attitude
-    python scripts/study_information_attitude.py out/attitude/studies/kf-alg2 \\
+    python studies/paired.py out/attitude/studies/kf-alg2 \\
         out/attitude/studies/kf-info-0.39 --require-reduction 0.2 --excitation-floor 1.0
 
 (or any two ``drake-uuv montecarlo --out`` folders, e.g. one with

@@ -3,9 +3,9 @@ against Algorithm 2 at equal motion, with the paper's KF and the raw-range EKF, 
 hovering UUV.
 
 Runs the comparison groups ``attitude`` (``runs`` per variant) and ``attitude_vehicle``
-(``min(runs, 30)``: a vehicle run costs ~10 s) through :func:`drake_uuv.studies.compare`
+(``min(runs, 30)``: a vehicle run costs ~10 s) through :func:`drake_uuv.studies.compare_groups`
 into ``work/attitude`` and ``work/attitude_vehicle`` (resume-able), pairs the variants seed
-by seed with ``scripts/study_information_attitude.py``, draws
+by seed with ``studies/paired.py``, draws
 ``docs/figures/attitude_rmse_rotation.png`` and returns the Markdown. Every number in it
 comes from these runs.
 """
@@ -20,19 +20,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.ticker import FormatStrFormatter, LogLocator  # noqa: E402
-from study_information_attitude import compare_folders, failed_runs, read_runs  # noqa: E402
 
 from drake_uuv.analysis.figures import save_figure  # noqa: E402
 from drake_uuv.models.vehicle_limits import utilisation_budget  # noqa: E402
-from drake_uuv.studies import compare  # noqa: E402
-from drake_uuv.studies.comparison import (  # noqa: E402
-    ATTITUDE_BUDGETS,
-    VEHICLE_ANGULAR_RATE,
-    VEHICLE_LOOP,
-    VEHICLE_SPEED_BUDGET,
-    attitude_budget_variants,
-    attitude_vehicle_variants,
-)
+from drake_uuv.studies import compare_groups  # noqa: E402
+
+from ..attitude import ATTITUDE_BUDGETS, ATTITUDE_GROUP, ATTITUDE_VEHICLE_GROUP  # noqa: E402
+from ..paired import compare_folders, failed_runs, read_runs  # noqa: E402
+from ..vehicle import VEHICLE_ANGULAR_RATE, VEHICLE_LOOP, VEHICLE_SPEED_BUDGET  # noqa: E402
 
 # The acceptance: at Algorithm 2's mean rotation per step the planner's position RMSE is at
 # least this much lower (and the paired difference's interval excludes zero).
@@ -187,10 +182,10 @@ def _figure(rows: dict[str, _Row], docs: Path) -> Path:
 
 def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str:
     """Runs (or resumes) both groups, draws the figure and returns the section's Markdown."""
-    main = compare(attitude_budget_variants(), work / "attitude", runs, **execution)
+    main = compare_groups([ATTITUDE_GROUP], work / "attitude", runs, **execution)
     vehicle_runs = min(runs, VEHICLE_RUNS)
-    vehicle = compare(
-        attitude_vehicle_variants(), work / "attitude_vehicle", vehicle_runs, **execution
+    vehicle = compare_groups(
+        [ATTITUDE_VEHICLE_GROUP], work / "attitude_vehicle", vehicle_runs, **execution
     )
     rows = {variant.name: _Row(variant, result) for variant, result in main}
     vrows = {variant.name: _Row(variant, result) for variant, result in vehicle}
@@ -355,7 +350,7 @@ rate-limited to the same budget (`attitude.max_angular_rate = B / t`, t = {t:g} 
 turns more than B) and the planner gets `max_angle_per_step = B`, for B in
 {", ".join(f"{b:g}" for b in ATTITUDE_BUDGETS)} rad. Every variant runs the same {runs} seeds
 (`{main_command}`); runs are paired by seed and compared by a paired bootstrap of the pooled
-RMSE (`scripts/study_information_attitude.py`; a seed is left out of a pair when the
+RMSE (`studies/paired.py`; a seed is left out of a pair when the
 estimator-health monitor stopped either run). Brackets are 95 % intervals; RMSEs over k ≥ 200;
 "min λ(Λ₂₄)" is the smallest over every window of every run; "diverged": final position error
 above 10 m.

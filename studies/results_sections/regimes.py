@@ -1,9 +1,9 @@
 """Results-page section "Estimation at the limit: noise and standoff": the ``regimes`` group.
 
-Runs the group's studies (:func:`drake_uuv.studies.comparison.regime_variants`: σ = 0.1, 0.5,
+Runs the group's studies (``regime_variants`` of ``studies/regimes.py``: σ = 0.1, 0.5,
 1 m of range noise at the paper's standoff, and 2.8, 14, 28 m of standoff with q* fixed in the
 world, × the paper's KF, the EKF, the UKF, the particle filter and the particle filter with
-20000 particles) under ``work/regimes`` through :func:`drake_uuv.studies.compare`
+20000 particles) under ``work/regimes`` through :func:`drake_uuv.studies.compare_groups`
 (resume-able); times two seeded runs of every variant in this process (the studies drop wall
 times so that their results are reproducible); writes ``docs/figures/regimes_ratio.png``;
 writes ``drake-uuv run``'s ``log.npz`` for 5 paper and 4 σ = 0.5 m particle-filter seeds and
@@ -27,9 +27,10 @@ from drake_uuv.models.statistics import chi2_ppf
 from drake_uuv.scenario import load_scenario
 from drake_uuv.scenario.estimators import Ekf, ParticleFilter
 from drake_uuv.simulation import ClosedLoopSimulation
-from drake_uuv.studies import compare
-from drake_uuv.studies.comparison import REGIME_ESTIMATORS, REGIMES, regime_variants
+from drake_uuv.studies import compare_groups
 from drake_uuv.studies.study import StudyResult
+
+from ..regimes import REGIME_ESTIMATORS, REGIMES, REGIMES_GROUP, regime_variants
 
 ROOT = Path(__file__).resolve().parents[2]
 # The acceptance criteria of the regime study.
@@ -263,7 +264,7 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
     folder = work / "regimes"
     runs = min(runs, REGIME_RUNS)
     variants = regime_variants()
-    compared = compare(variants, folder, runs, **execution)
+    compared = compare_groups([REGIMES_GROUP], folder, runs, **execution)
     n = {variant.name: numbers(result) for variant, result in compared}
     seconds = wall_times(folder, variants)
     ratio_figure(n, docs / "figures" / "regimes_ratio.png")

@@ -12,6 +12,6 @@ from typing import Any
 
 Section = Callable[[Path, Path, int, dict[str, Any]], str]
 
-from results_sections import attitude, regimes, vehicle  # noqa: E402  (after Section, which they do not need)
+from . import attitude, regimes, vehicle  # noqa: E402  (after Section, which they do not need)
 
 SECTIONS: list[Section] = [vehicle.section, regimes.section, attitude.section]

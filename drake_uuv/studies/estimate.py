@@ -1,0 +1,136 @@
+"""How long a batch of studies will take, from the measured cost of one run.
+
+A run's cost is set by its configuration (:func:`configuration`): the plant, estimator and
+attitude variants, the particle count and the number of steps (a particle filter or the
+hovering UUV costs ten to a hundred times the paper's kinematic loop with its KF; the rest of
+a variant's settings costs little). :func:`estimate_wall_time` times one run of each distinct
+configuration among the runs still to compute, exactly as a study runs it
+(:func:`~drake_uuv.studies.runner.run_seeds` on the first seed, its diagram built), and scales:
+the wall time is Σ over configurations of (one run's seconds × its runs), divided by the
+workers (at most one per run). It ignores what parallel workers lose to each other (about 13 %
+on two cores, ``benchmarks/bench_montecarlo.py``) and the spread of run times across seeds.
+"""
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from time import perf_counter
+
+from drake_uuv.scenario import Scenario, scenario_as_dict
+from drake_uuv.studies.runner import run_seeds
+from drake_uuv.studies.storage import missing_seeds
+from drake_uuv.studies.study import Study
+
+# plant, estimator, particle count ("" without particles), attitude, steps.
+Configuration = tuple[str, str, str, str, int]
+
+
+def configuration(scenario: Scenario) -> Configuration:
+    """What sets the cost of a run of ``scenario`` (see the module)."""
+    settings = scenario_as_dict(scenario)
+    particles = settings["estimator"].get("particle_count")
+    return (
+        settings["plant"]["variant"],
+        settings["estimator"]["variant"],
+        "" if particles is None else str(particles),
+        settings["attitude"]["variant"],
+        scenario.steps,
+    )
+
+
+def time_one_run(scenario: Scenario) -> float:
+    """Wall seconds of one run of ``scenario`` as a study runs it (first seed, diagram built)."""
+    start = perf_counter()
+    run_seeds(scenario, [scenario.random_seed])
+    return perf_counter() - start
+
+
+@dataclass(frozen=True)
+class WallTimeEstimate:
+    """The runs of a batch still to compute and the time they will take."""
+
+    variants: int
+    runs_per_variant: int
+    # Runs still to compute (fewer than variants × runs_per_variant when resuming).
+    runs: int
+    # Seconds of one run of each configuration, and its runs still to compute.
+    costs: dict[Configuration, tuple[float, int]]
+    # Local worker processes; None on a Dask cluster (its size is known only once connected).
+    workers: int | None
+
+    @property
+    def run_seconds(self) -> float:
+        """The runs' seconds on one worker."""
+        return sum(seconds * runs for seconds, runs in self.costs.values())
+
+    @property
+    def seconds(self) -> float:
+        """Wall seconds on :attr:`workers` (on one worker for a cluster)."""
+        return self.run_seconds / max(1, min(self.workers or 1, self.runs))
+
+
+def estimate_wall_time(
+    studies: Sequence[Study],
+    workers: int | None,
+    resume: bool = False,
+    timer: Callable[[Scenario], float] | None = None,
+) -> WallTimeEstimate:
+    """Times one run of each configuration with runs to compute and scales it (see the module).
+
+    ``timer(scenario)``: the seconds of one run (default :func:`time_one_run`).
+    """
+    timer = timer or time_one_run
+    counts: dict[Configuration, int] = {}
+    first: dict[Configuration, Scenario] = {}
+    for study in studies:
+        missing = len(missing_seeds(study, resume))
+        if missing:
+            key = configuration(study.scenario)
+            counts[key] = counts.get(key, 0) + missing
+            first.setdefault(key, study.scenario)
+    costs = {key: (timer(first[key]), runs) for key, runs in counts.items()}
+    return WallTimeEstimate(
+        variants=len(studies),
+        runs_per_variant=max((study.runs for study in studies), default=0),
+        runs=sum(counts.values()),
+        costs=costs,
+        workers=workers,
+    )
+
+
+def duration(seconds: float) -> str:
+    """``12 s``, ``4 min 10 s``, ``2 h 05 min``."""
+    seconds = round(seconds)
+    if seconds < 60:
+        return f"{seconds} s"
+    if seconds < 3600:
+        return f"{seconds // 60} min {seconds % 60:02d} s"
+    return f"{seconds // 3600} h {seconds % 3600 // 60:02d} min"
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
+def format_estimate(estimate: WallTimeEstimate) -> str:
+    """The lines ``drake-uuv compare`` prints before it starts."""
+    total = estimate.variants * estimate.runs_per_variant
+    head = f"{_count(estimate.runs, 'run')} to compute ({_count(estimate.variants, 'variant')}"
+    head += f" × {_count(estimate.runs_per_variant, 'run')}"
+    head += ")" if estimate.runs == total else f", {total - estimate.runs} on disk already)"
+    if not estimate.runs:
+        return head
+    where = (
+        "on one worker (a cluster divides it by its worker threads)"
+        if estimate.workers is None
+        else f"on {_count(estimate.workers, 'worker')}"
+    )
+    lines = [
+        f"{head}: about {duration(estimate.seconds)} {where},",
+        "from one timed run of each configuration (plant, estimator, particles, attitude, steps):",
+    ]
+    for (plant, estimator, particles, attitude, steps), (seconds, runs) in sorted(
+        estimate.costs.items(), key=lambda item: -item[1][0] * item[1][1]
+    ):
+        name = estimator + (f" {particles}" if particles else "")
+        lines.append(f"  {seconds:7.2f} s × {runs:>5}  {plant}, {name}, {attitude}, {steps} steps")
+    return "\n".join(lines)
