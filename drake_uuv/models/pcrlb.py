@@ -57,6 +57,11 @@ The linear KF's own bound, :func:`kf_riccati_covariance`, is its Riccati covaria
 linear filter with the correct noise second moments it *is* the filter's MSE, whatever the
 noise distribution. Since ``Y = ½(d1² − d2²)`` is a function of the ranges, the PCRLB is
 below it (``M(k) ⪰ Cᵀ Γ⁻¹ C`` at every step by Cauchy–Schwarz).
+
+Here every range is taken at its step's tick and reaches the estimator at once, with the
+vehicle's navigation perfect. Ranges at their own ping times, counted once they arrive, are
+in :mod:`drake_uuv.models.pcrlb_timed` (the same recursion when every ping is at the tick);
+what navigation errors and the sound speed add, in :mod:`drake_uuv.models.navigation_noise`.
 """
 
 from __future__ import annotations
