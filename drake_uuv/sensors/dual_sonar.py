@@ -57,8 +57,8 @@ class DualSonar(LeafSystem):
     Sonar s1 sits at ``p_WU + ½ q_s`` and s2 at ``p_WU − ½ q_s``, with the world baseline
     ``q_s = R_WB b`` (the paper's symbol; the port is ``b_W``). Each returns ``f`` samples
     ``d_i = (1 + ε)|p_WS_i − p_WT| + v``, ``v ~ N(0, η_i)``, with ``ε`` the sound-speed error
-    (0 in the paper); the first sample forms ``Y = ½(d1² − d2²) = q_sᵀ q + v̄`` and all ``f``
-    estimate ``d̄²`` for the noise variance ``Γ``
+    (0 in the paper); the first sample forms ``Y = ½(d1² − d2²) = q_sᵀ q + v̄`` and all
+    ``f`` estimate ``d̄²`` for the noise variance ``Γ``
     (:func:`~drake_uuv.models.measurement.range_difference_noise`).
 
     .. pydrake_system::
