@@ -18,6 +18,8 @@ logged vehicle position from the same run without stops.
 """
 
 import argparse
+import importlib
+from pathlib import Path
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
@@ -26,17 +28,15 @@ from drake_uuv import ClosedLoopSimulation, load_scenario
 from drake_uuv.models.ping_geometry import interpolate_attitude
 from drake_uuv.models.so3 import log_so3
 from drake_uuv.simulation import log_from_loggers
+from drake_uuv.studies import load_studies
 
-#: The flyable configuration of the vehicle study (its ``feasible`` overrides).
-FEASIBLE = [
-    "tracking=!LqrTracking",
-    "tracking.reference_frame=world",
-    "tracking.max_acceleration=0.6",
-    "tracking.velocity_weight=6.918",
-    "tracking.input_weight=2.778",
-    "attitude.max_angular_rate=0.3",
-    "plant=!HoveringAuv",
-]
+
+def feasible_overrides() -> list[str]:
+    """The flyable configuration: the vehicle study's ``feasible`` overrides (the LQR loop the
+    vehicle can fly and its angular-rate limit), read from the repository's ``studies/``."""
+    studies = load_studies(Path(__file__).resolve().parents[1] / "studies")
+    vehicle = importlib.import_module(f"{studies.__name__}.vehicle")
+    return [*vehicle.VEHICLE_LOOP, f"attitude.max_angular_rate={vehicle.VEHICLE_ANGULAR_RATE}"]
 
 
 def run_with_stops(
@@ -68,8 +68,8 @@ def main() -> None:
     parser.add_argument("--offset", type=float, default=0.25)
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
-    overrides = [f"sonar.ping_offsets=[0.0, {args.offset}]"]
-    scenario = load_scenario("paper", [*FEASIBLE, *overrides, f"steps={args.steps}"])
+    overrides = ["plant=!HoveringAuv", f"sonar.ping_offsets=[0.0, {args.offset}]"]
+    scenario = load_scenario("paper", [*feasible_overrides(), *overrides, f"steps={args.steps}"])
     simulation = ClosedLoopSimulation(scenario)
     log, p_WU, R_WB = run_with_stops(simulation, args.seed, args.offset)
     t, tau, b = scenario.time_step, args.offset, np.asarray(scenario.sonar.baseline)

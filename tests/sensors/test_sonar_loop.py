@@ -6,12 +6,12 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from drake_uuv import ClosedLoopSimulation, load_scenario
 from drake_uuv.models.measurement import NO_ARRIVAL, VALID
+from tests.conftest import study_module
 from tests.sensors.sonar_harness import rotation
 
+_VEHICLE = study_module("vehicle")
 #: The flyable configuration of the vehicle study (its ``feasible`` overrides).
-FEASIBLE = ["tracking=!LqrTracking", "tracking.reference_frame=world",
-            "tracking.max_acceleration=0.6", "tracking.velocity_weight=6.918",
-            "tracking.input_weight=2.778", "attitude.max_angular_rate=0.3"]  # fmt: skip
+FEASIBLE = [*_VEHICLE.VEHICLE_LOOP, f"attitude.max_angular_rate={_VEHICLE.VEHICLE_ANGULAR_RATE}"]
 STEPS = 300
 
 
