@@ -1,5 +1,6 @@
 """Two monostatic sonars at ±½ b about the body origin, and the linear measurement Y."""
 
+import copy
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -195,18 +196,18 @@ class DualSonar(LeafSystem):
         )
         depends = {self._measurement.ticket()}
         for name, size, calc in (
-            ("ranges", 2, lambda a: a.samples[:, 0]),
-            ("range_samples", 2 * self._f, lambda a: a.samples.ravel()),
-            ("sonar_status", 2, lambda a: a.status),
-            ("multipath", 2, lambda a: a.multipath),
-            ("ping_time", 2, lambda a: a.time),
-            ("p_TS_W", 6, lambda a: a.p_TS_W.ravel()),
+            ("ranges", 2, self._arrival_output(lambda a: a.samples[:, 0])),
+            ("range_samples", 2 * self._f, self._arrival_output(lambda a: a.samples.ravel())),
+            ("Y", 1, self._calc_Y),
+            ("m", 1, self._calc_m),
+            ("Gamma", 1, self._calc_Gamma),
+            ("b_W", 3, self._calc_b_W),
+            ("sonar_status", 2, self._arrival_output(lambda a: a.status)),
+            ("multipath", 2, self._arrival_output(lambda a: a.multipath)),
+            ("ping_time", 2, self._arrival_output(lambda a: a.time)),
+            ("p_TS_W", 6, self._arrival_output(lambda a: a.p_TS_W.ravel())),
         ):
-            self.DeclareVectorOutputPort(name, size, self._arrival_output(calc), depends)
-        self.DeclareVectorOutputPort("Y", 1, self._calc_Y, depends)
-        self.DeclareVectorOutputPort("m", 1, self._calc_m, depends)
-        self.DeclareVectorOutputPort("Gamma", 1, self._calc_Gamma, depends)
-        self.DeclareVectorOutputPort("b_W", 3, self._calc_b_W, depends)
+            self.DeclareVectorOutputPort(name, size, calc, depends)
 
     def _declare_timing(self) -> None:
         """With timing: the velocity inputs, the previous tick's geometry, one FIFO per sonar
@@ -263,7 +264,7 @@ class DualSonar(LeafSystem):
         measured = self._measure(context, pings)
         arrivals = measured
         if self._fifo_index:
-            arrivals = Pings(*(np.copy(a) for a in vars(measured).values()))
+            arrivals = copy.deepcopy(measured)
             n = Pings.entry_size(self._f)
             for i, index in self._fifo_index.items():
                 arrivals.set_entry(i, context.get_discrete_state(index).value()[:n])
