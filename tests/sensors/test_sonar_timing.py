@@ -17,10 +17,17 @@ from drake_uuv.models.measurement import (
     paper_measurement,
 )
 from drake_uuv.scenario import ScenarioError, SonarConfig, load_scenario
-from drake_uuv.sensors import DualSonar
-from drake_uuv.sensors.sonar_timing import arrival_delays
+from drake_uuv.sensors import DualSonar, sonar_faults
+from drake_uuv.sensors.sonar_faults import beam_axis
+from drake_uuv.sensors.sonar_timing import arrival_delays, tick_ping
 from tests.conftest import ETA_UNEQUAL, T
-from tests.sensors.sonar_harness import Motion, drive, expected_arrivals, standard_draws
+from tests.sensors.sonar_harness import (
+    Motion,
+    drive,
+    expected_arrivals,
+    rotation,
+    standard_draws,
+)
 
 STEPS = 40
 
@@ -254,3 +261,18 @@ def test_faults_follow_the_ping_not_the_tick() -> None:
         "search_sigma")})), motion, STEPS, draws, priors, P)  # fmt: skip
     late = expected["sonar_status"][sonar.delays[1] :, 1]
     assert np.any(at_tick["sonar_status"][: len(late), 1] != late)
+
+
+def test_the_beam_axis_by_the_pointing_attitude(monkeypatch: pytest.MonkeyPatch) -> None:
+    """By the true attitude the axis is the predicted direction; by another (a navigation's),
+    the body-frame aim ``R_pointᵀ(−(q_prior ± ½ R_point b))`` carried by the true attitude."""
+    motion = Motion()
+    R_true = motion.attitude(0.3)
+    q_s = R_true @ motion.baseline
+    q_prior = np.array([-2.0, 1.0, 0.5])
+    ping = tick_ping(1, 0.3, np.array([-2.5, 1.2, 0.4]), R_true, q_s, q_prior, 0.0)
+    assert_array_equal(beam_axis(ping, motion.baseline), -(q_prior - 0.5 * q_s))
+    R_nav = rotation(np.array([0.0, 0.0, 0.05])) @ R_true  # a 0.05 rad heading error
+    monkeypatch.setattr(sonar_faults, "pointing_attitude", lambda ping: R_nav)
+    aim_B = R_nav.T @ -(q_prior - 0.5 * R_nav @ motion.baseline)
+    assert_allclose(beam_axis(ping, motion.baseline), R_true @ aim_B, atol=1e-14)
