@@ -112,7 +112,11 @@ def make_systems(
     makers: dict[str, Callable[[], System]] = {
         "uuv": lambda: make_plant(scenario),
         "target": lambda: TargetRandomWalk(scenario.target, time_step=scenario.time_step),
-        "sonar": lambda: DualSonar(scenario.sonar, noise_model=scenario.estimator.noise_model),
+        "sonar": lambda: DualSonar(
+            scenario.sonar,
+            noise_model=scenario.estimator.noise_model,
+            time_step=scenario.time_step,
+        ),
         "estimator": lambda: make_estimator(scenario),
         "attitude_generator": lambda: make_attitude_generator(scenario),
         "tracking_controller": lambda: make_tracking_controller(scenario),

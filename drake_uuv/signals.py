@@ -26,7 +26,8 @@ SIGNALS: tuple[Signal, ...] = (
     # The target.
     Signal("p_WT", "target", (3,), "position of the target in W [m]"),
     Signal("v_WT", "target", (3,), "velocity of the target in W [m/s]"),
-    # The dual sonar.
+    # The dual sonar: its signals describe the ranges arriving at the tick (with a ping
+    # offset or a latency, pings of earlier times), except b_W, the tick's.
     Signal("ranges", "sonar", (2,), "first range sample of sonars s1, s2 [m]; NaN: no return"),
     Signal("range_samples", "sonar", (-1,), "all f samples of s1, then of s2 [m]", logged=False),
     Signal("Y", "sonar", (), "the paper's measurement ½(d1² − d2²) [m²]"),
@@ -37,10 +38,18 @@ SIGNALS: tuple[Signal, ...] = (
         "sonar_status",
         "sonar",
         (2,),
-        "per sonar: valid, dropped, out of beam, out of range",
+        "per sonar, of the range arriving: valid, dropped, out of beam, out of range, no arrival",
         integer=True,
     ),  # fmt: skip
     Signal("multipath", "sonar", (2,), "ground truth: each return's multipath excess [m]"),
+    Signal("ping_time", "sonar", (2,), "when each arriving range's ping was sent [s]; NaN: none"),
+    Signal(
+        "p_TS_W",
+        "sonar",
+        (6,),
+        "ground truth: each arriving range's sonar (s1's 3, s2's 3) from the target at its "
+        "ping, W [m]; NaN: none",
+    ),
     # The estimator slot.
     Signal("x_TU_hat", "estimator", (6,), "filtered estimate x(k|k) = [q̂, ϑ̂] [m, m/s]"),
     Signal("P_TU", "estimator", (6, 6), "covariance P(k|k) of x_TU_hat"),

@@ -1,24 +1,39 @@
 """Two monostatic sonars at ±½ b about the body origin, and the linear measurement Y."""
 
+import copy
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Self
 
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
-
-from drake_uuv.models.measurement import (
-    DROPPED,
-    OUT_OF_BEAM,
-    OUT_OF_RANGE,
-    VALID,
-    range_difference_noise,
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    DiscreteValues,
+    LeafSystem,
+    ValueProducer,
 )
-from drake_uuv.models.so3 import norm
+
+from drake_uuv.models.measurement import NO_ARRIVAL, VALID, range_difference_noise
 from drake_uuv.primitives.random_input import declare_random_input
+from drake_uuv.primitives.setting import time_step_field
 from drake_uuv.scenario.schema import SonarConfig
+from drake_uuv.sensors.sonar_faults import SonarFaults, geometry_status, random_faults
+from drake_uuv.sensors.sonar_timing import (
+    PingGeometry,
+    Pings,
+    TickGeometry,
+    arrival_delays,
+    fifo_push,
+    ping_between,
+    tick_ping,
+)
+
+_NAN = math.nan
+_NAN3 = np.full(3, math.nan)
+_NAN3.setflags(write=False)
 
 
 def _clip_at_zero(x: float) -> float:
@@ -27,56 +42,14 @@ def _clip_at_zero(x: float) -> float:
 
 
 @dataclass
-class SonarFaults:
-    """Sensor realism beyond the paper; the defaults switch every effect off.
-
-    - ``max_range`` [m]: no return from a target farther than this.
-    - ``beam_half_angle`` [rad]: each pan-tilt sonar points at the estimator's *predicted*
-      target position (known before the step's measurement, so there is no algebraic loop);
-      a target further off that axis gives no return. Within one step (hundreds of pings at
-      the sonar's rate) the pan-tilt scans the prediction's ``search_sigma``-σ region, so the
-      acceptance cone is the wider of the beam and that region's angular radius: a target
-      lost while the estimate drifts is found again once the uncertainty covers it.
-    - ``dropout_probability`` (per sonar): a return lost, independently each step.
-    - ``outlier_probability``, ``outlier_scale`` [m]: a multipath return, longer by an
-      exponentially distributed excess of mean ``outlier_scale`` (all f samples of that step).
-    """
-
-    max_range: float | None = None
-    beam_half_angle: float | None = None
-    dropout_probability: tuple[float, float] = (0.0, 0.0)
-    outlier_probability: float = 0.0
-    outlier_scale: float = 1.0
-    search_sigma: float = 3.0
-
-    @property
-    def random_faults(self) -> bool:
-        return max(self.dropout_probability) > 0.0 or self.outlier_probability > 0.0
-
-    @classmethod
-    def from_config(cls, config: SonarConfig) -> Self:
-        """The fault model of a sonar section (all off in the paper scenario)."""
-        s = config
-        half_angle = s.beam_half_angle_deg
-        return cls(
-            max_range=s.max_range,
-            beam_half_angle=None if half_angle is None else math.radians(half_angle),
-            dropout_probability=tuple(s.dropout_probability),
-            outlier_probability=s.outlier_probability,
-            outlier_scale=s.outlier_scale,
-            search_sigma=s.search_sigma,
-        )
-
-
-@dataclass
 class _Measurement:
-    range_samples: np.ndarray  # (2, f); NaN where a sonar has no return
-    Y: float  # NaN unless both sonars returned
+    arrivals: Pings  # the ranges arriving at this tick
+    Y: float  # NaN unless both sonars' ranges arrived and returned
     m: float
     Gamma: float
-    b_W: np.ndarray  # (3,)
-    status: np.ndarray  # (2,) VALID, DROPPED, OUT_OF_BEAM or OUT_OF_RANGE
-    multipath: np.ndarray  # (2,) the true multipath excess [m], 0 without an outlier
+    b_W: np.ndarray  # (3,) the tick's world baseline
+    measured: Pings  # the pings measured at this tick (those a FIFO takes in)
+    tick: TickGeometry | None  # this tick's geometry, with timing (the next tick's previous)
 
 
 class DualSonar(LeafSystem):
@@ -84,9 +57,10 @@ class DualSonar(LeafSystem):
 
     Sonar s1 sits at ``p_WU + ½ q_s`` and s2 at ``p_WU − ½ q_s``, with the world baseline
     ``q_s = R_WB b`` (the paper's symbol; the port is ``b_W``). Each returns ``f`` samples
-    ``d_i = |p_WS_i − p_WT| + v``, ``v ~ N(0, η_i)``; the first sample forms
-    ``Y = ½(d1² − d2²) = q_sᵀ q + v̄`` and all ``f`` estimate ``d̄²`` for the noise variance
-    ``Γ`` (:func:`~drake_uuv.models.measurement.range_difference_noise`).
+    ``d_i = (1 + ε)|p_WS_i − p_WT| + v``, ``v ~ N(0, η_i)``, with ``ε`` the sound-speed error
+    (0 in the paper); the first sample forms ``Y = ½(d1² − d2²) = q_sᵀ q + v̄`` and all
+    ``f`` estimate ``d̄²`` for the noise variance ``Γ``
+    (:func:`~drake_uuv.models.measurement.range_difference_noise`).
 
     .. pydrake_system::
 
@@ -96,6 +70,8 @@ class DualSonar(LeafSystem):
         - R_WB
         - p_WT
         - range_noise
+        - v_WU (with timing)
+        - v_WT (with timing)
         - x_TU_prior (with a beam)
         - P_TU_prior (with a beam)
         - fault_uniform (with dropouts or outliers)
@@ -109,32 +85,64 @@ class DualSonar(LeafSystem):
         - b_W
         - sonar_status
         - multipath
+        - ping_time
+        - p_TS_W
 
-    - ``p_WU`` (3), the vehicle's body origin; ``R_WB`` (9, row-major); ``p_WT`` (3), the
-      target.
+    - ``p_WU``, ``v_WU`` (3 each), the vehicle's body origin and its velocity; ``R_WB`` (9,
+      row-major); ``p_WT``, ``v_WT`` (3 each), the target.
     - ``range_noise`` (2f, random, standard normal): scaled here by ``√η_i``.
+
+    The outputs of a tick describe the ranges *arriving* at it (the ping's, with timing):
+
     - ``ranges`` (2): the first sample of each sonar, ``[d1, d2]`` [m].
     - ``range_samples`` (2f): all samples, sonar 1's then sonar 2's [m].
     - ``Y``, ``m``, ``Gamma`` (1 each): the measurement, its noise mean and variance.
-    - ``b_W`` (3): the world baseline ``q_s = R_WB b`` (so ``C(k) = [q_sᵀ, 0]``).
-    - ``sonar_status`` (2): per sonar, ``VALID``, ``DROPPED``, ``OUT_OF_BEAM`` or ``OUT_OF_RANGE``.
-      A sonar without a return has NaN ranges, and ``Y``, ``m``, ``Gamma`` are NaN unless
-      both returned.
+    - ``b_W`` (3): the tick's true world baseline ``q_s = R_WB b`` (so ``C(k) = [q_sᵀ, 0]``).
+    - ``sonar_status`` (2): per sonar, ``VALID``, ``DROPPED``, ``OUT_OF_BEAM``,
+      ``OUT_OF_RANGE``, or ``NO_ARRIVAL`` (no ping of the sonar is due at this tick: the first
+      ticks with latency). A sonar without a return has NaN ranges, and ``Y``, ``m``,
+      ``Gamma`` are NaN unless both returned.
     - ``multipath`` (2): ground truth for analysis, the excess added to each sonar's return.
+    - ``ping_time`` (2) [s]: when each arriving range's ping was sent (NaN with NO_ARRIVAL).
+    - ``p_TS_W`` (6) [m]: ground truth, each arriving range's sonar from the target at its
+      ping, ``q ± ½ q_s`` then, in W (s1's three, then s2's; NaN with NO_ARRIVAL).
 
-    Faults (:class:`SonarFaults`, all off by default) add ports only when switched on:
-    ``x_TU_prior`` (6) and ``P_TU_prior`` (36), the estimator's prediction the pan-tilts point
-    at, the random ports ``fault_uniform`` (4, uniform: dropout then outlier draws per sonar) and
-    ``multipath_noise`` (2, exponential).
+    **Timing** (``config.ping_offsets`` τ_i, ``config.latency`` L;
+    :mod:`~drake_uuv.sensors.sonar_timing`): sonar i pings at ``t_k + τ_i`` in step k and its
+    range arrives at tick ``k + d_i``, ``d_i = ⌈(τ_i + L)/t⌉``. With ``τ_i = L = 0`` (the
+    paper's, the default) the range is measured at the tick from the inputs (direct
+    feedthrough, no state). Otherwise the sonar keeps the previous tick's geometry (the truth
+    and the estimator's prediction) as discrete state: at tick k+1 it measures the ping of
+    step k from the geometry of ticks k and k+1 (:func:`~drake_uuv.sensors.sonar_timing.
+    ping_between`: Hermite positions, geodesic attitude), with the noise drawn at tick k+1,
+    and holds it in a FIFO (discrete state) until tick ``k + d_i``; the velocity inputs exist
+    only then. The interpolation is exact for the kinematic plant and the target (constant
+    acceleration and world rate over a step); for the hovering UUV, a continuous plant, it
+    is an approximation. In the flyable configuration (the vehicle study's feasible
+    overrides, 500 steps, seed 1) a ping at τ = 0.25 s of the 0.5 s step puts the sonar at
+    most 0.009 m from where the vehicle's true state at that time puts it (attitude: at most
+    0.014 rad), and its range is off by at most 0.0081 m (RMS 0.0007 m), a twelfth of the
+    paper's 0.1 m range noise (``python benchmarks/bench_ping_interpolation.py --offset
+    0.25``); pings soon after the tick are off more, those late in the step less: at most
+    0.0135 m at τ = 0.1 s, 0.0023 m at τ = 0.4 s.
+
+    **Faults** (:class:`~drake_uuv.sensors.sonar_faults.SonarFaults`, all off by default)
+    apply to each ping's own geometry and add ports only when switched on: ``x_TU_prior``
+    (6) and ``P_TU_prior`` (36), the estimator's prediction of the ping's tick, which the
+    pan-tilts point at (by the attitude of
+    :func:`~drake_uuv.sensors.sonar_faults.pointing_attitude`); the random ports
+    ``fault_uniform`` (4, uniform: dropout then outlier draws per sonar) and
+    ``multipath_noise`` (2, exponential), drawn when the ping is measured.
 
     ``config`` (:class:`~drake_uuv.scenario.SonarConfig`) gives the baseline b, the noise
-    variances η, the samples per step f and the faults (:meth:`SonarFaults.from_config`);
-    ``noise_model`` is the model of ``Y``'s noise that ``m`` and ``Γ`` follow
-    (:data:`~drake_uuv.scenario.NOISE_MODELS`): the estimator's, which the builder passes
-    from the scenario's estimator section.
+    variances η, the samples per step f, the timing, the sound-speed error ε and the faults
+    (:meth:`SonarFaults.from_config`); ``noise_model`` is the model of ``Y``'s noise that
+    ``m`` and ``Γ`` follow (:data:`~drake_uuv.scenario.NOISE_MODELS`): the estimator's, which
+    the builder passes from the scenario's estimator section; ``time_step`` is the period t
+    [s] of the loop's ticks.
     """
 
-    def __init__(self, config: SonarConfig, *, noise_model: str) -> None:
+    def __init__(self, config: SonarConfig, *, noise_model: str, time_step: float) -> None:
         super().__init__()
         self._faults = SonarFaults.from_config(config)
         self._b = np.asarray(config.baseline, dtype=float)
@@ -150,6 +158,10 @@ class DualSonar(LeafSystem):
         self._derived_gamma_floor = float(gamma_at_zero)
         self._derived_m = float(self._derived_m)
         self._eta_floats = tuple(float(e) for e in self._eta)
+        self._scale = 1.0 + float(config.sound_speed_error)
+        self._time_step = time_step_field(time_step)
+        self._tau = tuple(float(tau) for tau in config.ping_offsets)
+        self._delays = arrival_delays(self._tau, float(config.latency), self._time_step)
 
         self._uuv_port = self.DeclareVectorInputPort("p_WU", 3)
         self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
@@ -168,61 +180,140 @@ class DualSonar(LeafSystem):
             self._multipath_port = declare_random_input(
                 self, "multipath_noise", 2, RandomDistribution.kExponential
             )
-        # One measurement per context, shared by every output port.
+        self._declare_timing()
+        # One measurement per context, shared by every output port and the update.
+        nan2 = np.full(2, math.nan)
+        empty = Pings(np.zeros((2, self._f)), nan2, nan2, nan2, np.zeros((2, 3)))
         self._measurement = self.DeclareCacheEntry(
             "measurement",
             ValueProducer(
                 allocate=AbstractValue.Make(
-                    _Measurement(
-                        np.zeros((2, self._f)), 0, 0, 0, np.zeros(3), np.zeros(2), np.zeros(2)
-                    )
+                    _Measurement(empty, 0.0, 0.0, 0.0, np.zeros(3), empty, None)
                 ).Clone,
                 calc=self._calc_measurement,
             ),
-            {self.all_input_ports_ticket()},
+            {self.all_sources_ticket()},
         )
         depends = {self._measurement.ticket()}
-        self.DeclareVectorOutputPort("ranges", 2, self._calc_ranges, depends)
-        self.DeclareVectorOutputPort("range_samples", 2 * self._f, self._calc_samples, depends)
-        self.DeclareVectorOutputPort("Y", 1, self._calc_Y, depends)
-        self.DeclareVectorOutputPort("m", 1, self._calc_m, depends)
-        self.DeclareVectorOutputPort("Gamma", 1, self._calc_Gamma, depends)
-        self.DeclareVectorOutputPort("b_W", 3, self._calc_b_W, depends)
-        self.DeclareVectorOutputPort("sonar_status", 2, self._calc_status, depends)
-        self.DeclareVectorOutputPort("multipath", 2, self._calc_multipath, depends)
+        for name, size, calc in (
+            ("ranges", 2, self._arrival_output(lambda a: a.samples[:, 0])),
+            ("range_samples", 2 * self._f, self._arrival_output(lambda a: a.samples.ravel())),
+            ("Y", 1, self._calc_Y),
+            ("m", 1, self._calc_m),
+            ("Gamma", 1, self._calc_Gamma),
+            ("b_W", 3, self._calc_b_W),
+            ("sonar_status", 2, self._arrival_output(lambda a: a.status)),
+            ("multipath", 2, self._arrival_output(lambda a: a.multipath)),
+            ("ping_time", 2, self._arrival_output(lambda a: a.time)),
+            ("p_TS_W", 6, self._arrival_output(lambda a: a.p_TS_W.ravel())),
+        ):
+            self.DeclareVectorOutputPort(name, size, calc, depends)
+
+    def _declare_timing(self) -> None:
+        """With timing: the velocity inputs, the previous tick's geometry, one FIFO per sonar
+        whose ranges wait a tick or more after they are measured, and the update."""
+        self._timed = max(self._delays) > 0
+        self._fifo_index: dict[int, int] = {}
+        if not self._timed:
+            return
+        self._uuv_velocity_port = self.DeclareVectorInputPort("v_WU", 3)
+        self._target_velocity_port = self.DeclareVectorInputPort("v_WT", 3)
+        self._previous_index = self.DeclareDiscreteState(TickGeometry.before_start().to_vector())
+        for i, d in enumerate(self._delays):
+            if d >= 2:  # a ping of step k is measured at tick k + 1 and read at k + d
+                empty = Pings.no_arrival_entry(self._f)
+                self._fifo_index[i] = self.DeclareDiscreteState(np.tile(empty, d - 1))
+        self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._advance)
 
     @property
     def faults(self) -> SonarFaults:
         return self._faults
 
+    @property
+    def delays(self) -> tuple[int, int]:
+        """``(d_1, d_2)``: the ticks from each sonar's step to the arrival of its range."""
+        return self._delays
+
     def _calc_measurement(self, context: Context, value: AbstractValue) -> None:
         p_WU = self._uuv_port.Eval(context)
         p_WT = self._target_port.Eval(context)
-        q_s = self._attitude_port.Eval(context).reshape(3, 3) @ self._b
+        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
+        q_s = R_WB @ self._b
         q = p_WU - p_WT
-        half = 0.5 * q_s
-        to_s1, to_s2 = q + half, q - half
-        true_ranges = np.array([math.sqrt(float(to_s1 @ to_s1)), math.sqrt(float(to_s2 @ to_s2))])
+        now = context.get_time()
+        q_prior, radius = self._pointing(context)
+        tick = previous = None
+        if self._timed:
+            tick = TickGeometry(
+                now, p_WU, self._uuv_velocity_port.Eval(context), R_WB, p_WT,
+                self._target_velocity_port.Eval(context), q_prior, radius,
+            )  # fmt: skip
+            previous = TickGeometry.from_vector(
+                context.get_discrete_state(self._previous_index).value()
+            )
+            if math.isnan(previous.time):
+                previous = None  # the first tick: no ping between ticks yet
+        pings: list[PingGeometry | None] = []
+        for i, (tau, d) in enumerate(zip(self._tau, self._delays, strict=True)):
+            if d == 0:
+                pings.append(tick_ping(i, now, q, R_WB, q_s, q_prior, radius))
+            elif previous is None:
+                pings.append(None)
+            else:
+                pings.append(ping_between(i, tau, previous, tick, self._time_step, self._b))
+        measured = self._measure(context, pings)
+        arrivals = measured
+        if self._fifo_index:
+            arrivals = copy.deepcopy(measured)
+            n = Pings.entry_size(self._f)
+            for i, index in self._fifo_index.items():
+                arrivals.set_entry(i, context.get_discrete_state(index).value()[:n])
+        Y, m, gamma = self._paper_measurement(arrivals.samples)
+        value.set_value(_Measurement(arrivals, Y, m, gamma, q_s, measured, tick))
+
+    def _pointing(self, context: Context) -> tuple[np.ndarray, float]:
+        """The estimator's predicted ``q`` and the radius the pan-tilts scan (NaN without a
+        beam)."""
+        if self._prior_port is None:
+            return _NAN3, math.nan  # nothing to point at
+        P_prior = self._prior_covariance_port.Eval(context).reshape(6, 6)
+        return self._prior_port.Eval(context)[:3], self._faults.search_radius(P_prior)
+
+    def _measure(self, context: Context, pings: list[PingGeometry | None]) -> Pings:
+        """Both sonars' ranges of these pings (None: no ping), with this tick's draws."""
+        true_ranges = np.array(
+            [0.0 if p is None else math.sqrt(float(p.p_TS_W @ p.p_TS_W)) for p in pings]
+        )
         noise = self._noise_port.Eval(context).reshape(2, self._f)
-        samples = true_ranges[:, np.newaxis] + self._sigma * noise
+        measured = true_ranges if self._scale == 1.0 else self._scale * true_ranges
+        samples = measured[:, np.newaxis] + self._sigma * noise
         status = np.zeros(2)
         multipath = np.zeros(2)
         faulty = False
         if self._prior_port is not None or self._faults.max_range is not None:
-            status = self._geometry_status(context, q, q_s, true_ranges)
+            status = geometry_status(self._faults, pings, true_ranges, self._b)
             faulty = True
         if self._faults.random_faults:
-            uniform = self._uniform_port.Eval(context)
-            dropped = uniform[:2] < self._faults.dropout_probability
-            status[(status == VALID) & dropped] = DROPPED
-            outlier = uniform[2:] < self._faults.outlier_probability
-            multipath = np.where(
-                outlier, self._faults.outlier_scale * self._multipath_port.Eval(context), 0.0
+            multipath = random_faults(
+                self._faults,
+                status,
+                self._uniform_port.Eval(context),
+                self._multipath_port.Eval(context),
             )
             samples += multipath[:, np.newaxis]
             faulty = True
+        if any(ping is None for ping in pings):
+            missing = np.array([ping is None for ping in pings])
+            status[missing], multipath[missing] = NO_ARRIVAL, 0.0
+            faulty = True
+        times = np.array([_NAN if p is None else p.time for p in pings])
+        p_TS_W = np.array([_NAN3 if p is None else p.p_TS_W for p in pings])
         if faulty and status.any():
             samples[status != VALID] = np.nan
+        return Pings(samples, status, multipath, times, p_TS_W)
+
+    def _paper_measurement(self, samples: np.ndarray) -> tuple[float, float, float]:
+        """``(Y, m, Γ)`` of the arriving samples (2×f)."""
         if self._f == 1 and self._noise_model == "derived":
             # The same arithmetic as below on Python floats (a sum of one sample is that
             # sample; dividing by 1 changes nothing), without a dozen numpy calls.
@@ -238,41 +329,26 @@ class DualSonar(LeafSystem):
             d1, d2 = samples[:, 0]
             mean_squares = (samples * samples).sum(axis=1) / self._f
             m, gamma = range_difference_noise(self._noise_model, self._eta, mean_squares)
-        value.set_value(
-            _Measurement(samples, 0.5 * (d1 * d1 - d2 * d2), m, gamma, q_s, status, multipath)
-        )
+        return 0.5 * (d1 * d1 - d2 * d2), m, gamma
 
-    def _geometry_status(
-        self, context: Context, q: np.ndarray, q_s: np.ndarray, true_ranges: np.ndarray
-    ) -> np.ndarray:
-        """OUT_OF_RANGE / OUT_OF_BEAM per sonar from the true and the pointed-at target."""
-        status = np.zeros(2)
-        if self._faults.max_range is not None:
-            status[true_ranges > self._faults.max_range] = OUT_OF_RANGE
-        if self._prior_port is not None:
-            q_prior = self._prior_port.Eval(context)[:3]
-            P_position = self._prior_covariance_port.Eval(context).reshape(6, 6)[:3, :3]
-            search_radius = self._faults.search_sigma * math.sqrt(
-                max(np.linalg.eigvalsh(P_position)[-1], 0.0)
-            )
-            for i, offset in enumerate((0.5 * q_s, -0.5 * q_s)):
-                to_target = -(q + offset)  # from sonar i to the true target
-                axis = -(q_prior + offset)  # from sonar i to the predicted target
-                distance = norm(axis)
-                half_angle = max(
-                    self._faults.beam_half_angle,
-                    math.pi if search_radius >= distance else math.asin(search_radius / distance),
-                )
-                cos_angle = (to_target @ axis) / (norm(to_target) * distance + 1e-300)
-                if status[i] == VALID and cos_angle < math.cos(half_angle):
-                    status[i] = OUT_OF_BEAM
-        return status
+    def _advance(self, context: Context, discrete_state: DiscreteValues) -> None:
+        """Keeps this tick's geometry for the next tick's pings and moves each FIFO on by
+        the ping measured now."""
+        measurement = self._measurement.Eval(context)
+        discrete_state.set_value(self._previous_index, measurement.tick.to_vector())
+        for i, index in self._fifo_index.items():
+            fifo = context.get_discrete_state(index).value()
+            discrete_state.set_value(index, fifo_push(fifo, measurement.measured.entry(i)))
 
-    def _calc_ranges(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._measurement.Eval(context).range_samples[:, 0])
+    def _arrival_output(
+        self, field: Callable[[Pings], np.ndarray]
+    ) -> Callable[[Context, BasicVector], None]:
+        """An output port's calc: ``field`` of the arriving pings."""
 
-    def _calc_samples(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._measurement.Eval(context).range_samples.ravel())
+        def calc(context: Context, output: BasicVector) -> None:
+            output.set_value(field(self._measurement.Eval(context).arrivals))
+
+        return calc
 
     def _calc_Y(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, self._measurement.Eval(context).Y)
@@ -285,9 +361,3 @@ class DualSonar(LeafSystem):
 
     def _calc_b_W(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._measurement.Eval(context).b_W)
-
-    def _calc_status(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._measurement.Eval(context).status)
-
-    def _calc_multipath(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._measurement.Eval(context).multipath)

@@ -9,6 +9,7 @@ from drake_uuv.models.measurement import range_difference_noise
 from drake_uuv.scenario import SonarConfig
 from drake_uuv.sensors import DualSonar
 from drake_uuv.testing import fixed_context
+from tests.conftest import T
 
 b = np.array([-1.0, 1.0, 0.0])
 eta = np.array([0.01, 0.04])
@@ -20,7 +21,7 @@ p_WT = np.array([3.0, 1.0, -1.0])
 def sonar_of(samples_per_step: int = 1, noise_model: str = "derived") -> DualSonar:
     """The sonars with baseline b and variances η (no faults)."""
     config = SonarConfig(b.tolist(), eta.tolist(), samples_per_step)
-    return DualSonar(config, noise_model=noise_model)
+    return DualSonar(config, noise_model=noise_model, time_step=T)
 
 
 def context_for(sonar: DualSonar, noise: np.ndarray):
@@ -39,7 +40,7 @@ def test_ports() -> None:
     inputs = [sonar.get_input_port(i) for i in range(sonar.num_input_ports())]
     assert {p.get_name(): p.size() for p in inputs} == sizes
     outputs = {"ranges": 2, "range_samples": 8, "Y": 1, "m": 1, "Gamma": 1, "b_W": 3,
-               "sonar_status": 2, "multipath": 2}  # fmt: skip
+               "sonar_status": 2, "multipath": 2, "ping_time": 2, "p_TS_W": 6}  # fmt: skip
     ports = [sonar.get_output_port(i) for i in range(sonar.num_output_ports())]
     assert {p.get_name(): p.size() for p in ports} == outputs
 

@@ -1,0 +1,216 @@
+"""When each sonar pings, when its range arrives, and what a ping saw: the sonar's timing.
+
+Sonar i pings at ``t_k + τ_i`` in step k (``sonar.ping_offsets``) and its range reaches the
+estimator ``L`` later (``sonar.latency``): at the first tick at or after ``t_k + τ_i + L``,
+``k + d_i`` with ``d_i = ⌈(τ_i + L)/t⌉`` (:func:`arrival_delays`). ``d_i = 0`` only when
+``τ_i = L = 0``: the paper's ping at the tick, read at once.
+
+A ping between ticks k and k+1 is known at tick k+1: :func:`ping_between` interpolates the
+geometry of the two ticks (:mod:`drake_uuv.models.ping_geometry`), which the sonar keeps as
+:class:`TickGeometry` in its discrete state, and a ping that arrives later waits in a FIFO of
+:class:`Pings` rows (:func:`fifo_push`), also discrete state.
+"""
+
+import math
+from dataclasses import dataclass
+from typing import Self
+
+import numpy as np
+
+from drake_uuv.models.measurement import NO_ARRIVAL
+from drake_uuv.models.ping_geometry import interpolate_attitude, interpolate_position
+
+#: A delay ``(τ + L)/t`` within this of an integer counts as that integer (``0.3 + 0.2``
+#: seconds of a 0.5 s step is one step, not two).
+DELAY_TOLERANCE = 1e-9
+
+
+def arrival_delays(
+    ping_offsets: tuple[float, float], latency: float, time_step: float
+) -> tuple[int, int]:
+    """``(d_1, d_2)``: the ticks from each sonar's step to the arrival of its range.
+
+    Raises ``ValueError`` naming the field for an offset outside ``[0, time_step)`` or a
+    negative latency (the scenario checks the same; a sonar built by hand is checked here).
+    """
+    for tau in ping_offsets:
+        if not 0.0 <= tau < time_step:
+            raise ValueError(
+                f"sonar.ping_offsets: must be in [0, time_step = {time_step:g}) each, "
+                f"got {list(ping_offsets)!r}"
+            )
+    if not (math.isfinite(latency) and latency >= 0.0):
+        raise ValueError(f"sonar.latency: must be ≥ 0, got {latency!r}")
+    delays = []
+    for tau in ping_offsets:
+        total = tau + latency
+        # A ping after the tick is known at the next tick at the earliest.
+        delays.append(0 if total == 0.0 else max(1, math.ceil(total / time_step - DELAY_TOLERANCE)))
+    return delays[0], delays[1]
+
+
+@dataclass(frozen=True)
+class TickGeometry:
+    """What the sonar keeps of a tick to compute, at the next, the pings between the two.
+
+    The truth (``p_WU``, ``v_WU``, ``R_WB``, ``p_WT``, ``v_WT``) and what the pan-tilts point
+    at in that step: the estimator's prediction ``q_prior`` of the tick's relative position
+    and the radius of the region they scan (NaN without a beam). ``time`` is NaN before the
+    first tick.
+    """
+
+    time: float
+    p_WU: np.ndarray
+    v_WU: np.ndarray
+    R_WB: np.ndarray  # 3×3
+    p_WT: np.ndarray
+    v_WT: np.ndarray
+    q_prior: np.ndarray
+    search_radius: float
+
+    #: The length of :meth:`to_vector`.
+    SIZE = 26
+
+    def to_vector(self) -> np.ndarray:
+        """The discrete-state layout: time, p_WU, v_WU, R_WB (row-major), p_WT, v_WT,
+        q_prior, search radius."""
+        return np.concatenate(
+            (
+                [self.time],
+                self.p_WU,
+                self.v_WU,
+                self.R_WB.ravel(),
+                self.p_WT,
+                self.v_WT,
+                self.q_prior,
+                [self.search_radius],
+            )
+        )
+
+    @classmethod
+    def from_vector(cls, vector: np.ndarray) -> Self:
+        v = np.asarray(vector, dtype=float)
+        return cls(
+            float(v[0]), v[1:4], v[4:7], v[7:16].reshape(3, 3), v[16:19], v[19:22], v[22:25],
+            float(v[25]),
+        )  # fmt: skip
+
+    @classmethod
+    def before_start(cls) -> Self:
+        """The state before the first tick: nothing known (every entry NaN)."""
+        nan3 = np.full(3, math.nan)
+        return cls(math.nan, nan3, nan3, np.full((3, 3), math.nan), nan3, nan3, nan3, math.nan)
+
+
+@dataclass(slots=True)
+class PingGeometry:
+    """One sonar's ping: when, where the sonar was, and what its pan-tilt pointed at.
+
+    ``p_TS_W``: the sonar from the target, ``q ± ½ q_s`` at the ping (W) [m]; ``offset_W``:
+    the sonar from the body origin, ``± ½ R_WB b``; ``sign``: +1 for s1, −1 for s2;
+    ``R_WB``: the true attitude at the ping; ``q_prior``, ``search_radius``: the prediction
+    of the ping's tick the pan-tilt points at and the radius it scans.
+    """
+
+    time: float
+    p_TS_W: np.ndarray
+    offset_W: np.ndarray
+    sign: float
+    R_WB: np.ndarray
+    q_prior: np.ndarray
+    search_radius: float
+
+
+def tick_ping(
+    sonar: int,
+    time: float,
+    q: np.ndarray,
+    R_WB: np.ndarray,
+    q_s: np.ndarray,
+    q_prior: np.ndarray,
+    search_radius: float,
+) -> PingGeometry:
+    """Sonar ``sonar``'s (0 or 1) ping with the vehicle at ``q`` from the target and the world
+    baseline ``q_s = R_WB b``."""
+    half = 0.5 * q_s
+    offset = half if sonar == 0 else -half
+    return PingGeometry(
+        time, q + offset, offset, 1.0 if sonar == 0 else -1.0, R_WB, q_prior, search_radius
+    )
+
+
+def ping_between(
+    sonar: int,
+    tau: float,
+    previous: TickGeometry,
+    current: TickGeometry,
+    time_step: float,
+    baseline_B: np.ndarray,
+) -> PingGeometry:
+    """Sonar ``sonar``'s ping ``tau`` after the ``previous`` tick, from both ticks' geometry.
+
+    The relative position by the cubic Hermite interpolant of ``(q, ϑ)``, the attitude by the
+    geodesic (exact for the kinematic plant and the target); the pan-tilt points at the
+    previous tick's prediction (the step the ping belongs to).
+    """
+    s = tau / time_step
+    q = interpolate_position(
+        previous.p_WU - previous.p_WT,
+        previous.v_WU - previous.v_WT,
+        current.p_WU - current.p_WT,
+        current.v_WU - current.v_WT,
+        s,
+        time_step,
+    )
+    R = interpolate_attitude(previous.R_WB, current.R_WB, s)
+    return tick_ping(
+        sonar, previous.time + tau, q, R, R @ baseline_B, previous.q_prior, previous.search_radius
+    )
+
+
+@dataclass
+class Pings:
+    """Both sonars' measured pings, row i sonar i: what a FIFO slot holds, what arrives.
+
+    ``samples`` (2×f, NaN without a return), ``status`` (VALID, DROPPED, OUT_OF_BEAM,
+    OUT_OF_RANGE or NO_ARRIVAL), ``multipath`` (the excess added), ``time`` (the ping time, NaN
+    with NO_ARRIVAL), ``p_TS_W`` (2×3, the sonar from the target at the ping, NaN likewise).
+    """
+
+    samples: np.ndarray
+    status: np.ndarray
+    multipath: np.ndarray
+    time: np.ndarray
+    p_TS_W: np.ndarray
+
+    @staticmethod
+    def entry_size(samples_per_step: int) -> int:
+        """The length of one sonar's row as a FIFO holds it."""
+        return samples_per_step + 6
+
+    def entry(self, sonar: int) -> np.ndarray:
+        """Sonar ``sonar``'s row: its f samples, status, multipath, ping time, p_TS_W."""
+        i = sonar
+        tail = [self.status[i], self.multipath[i], self.time[i]]
+        return np.concatenate((self.samples[i], tail, self.p_TS_W[i]))
+
+    def set_entry(self, sonar: int, entry: np.ndarray) -> None:
+        """Overwrites sonar ``sonar``'s row with a FIFO entry."""
+        f = self.samples.shape[1]
+        self.samples[sonar] = entry[:f]
+        self.status[sonar], self.multipath[sonar], self.time[sonar] = entry[f : f + 3]
+        self.p_TS_W[sonar] = entry[f + 3 :]
+
+    @staticmethod
+    def no_arrival_entry(samples_per_step: int) -> np.ndarray:
+        """A row with nothing in it: NaN samples, NO_ARRIVAL, no multipath, NaN time and
+        geometry."""
+        entry = np.full(Pings.entry_size(samples_per_step), math.nan)
+        entry[samples_per_step : samples_per_step + 2] = NO_ARRIVAL, 0.0
+        return entry
+
+
+def fifo_push(fifo: np.ndarray, entry: np.ndarray) -> np.ndarray:
+    """The FIFO (its entries concatenated, oldest first) with its oldest entry dropped and
+    ``entry`` appended."""
+    return np.concatenate((fifo[len(entry) :], entry))
