@@ -136,10 +136,14 @@ class RangeFilter(RelativeStateEstimator):
         if phase is Phase.PARTICLE:
             x, P, nis, _ = self._cloud.posterior(context)
         else:
+            R = ranges.covariance(self._R, prior.x)
             x, P, nis = self._gaussian_update(
-                prior.x, prior.P, ranges.z, ranges.q_s, self._R, sonars=sonars
+                prior.x, prior.P, ranges.z, ranges.q_s, R, sonars=sonars
             )
         return MeasurementUpdate(x, P, nis, int(sonars.size))
+
+    def needs_both_ranges(self, context: Context) -> bool:
+        return self.phase(context) is Phase.LINEAR
 
     def advance(
         self, context: Context, filtered: FilteredEstimate, discrete_state: DiscreteValues
