@@ -185,6 +185,11 @@ class RelativeStateEstimator(LeafSystem):
         if outcome is not None:
             self.write_prediction(discrete_state, outcome.x, outcome.P)
 
+    def filtered_estimate(self, context: Context) -> FilteredEstimate | None:
+        """A variant's own filtered estimate of this tick, or None for the base's (the
+        measurement update of the prior). The particles with late ranges use it."""
+        return None
+
     def needs_both_ranges(self, context: Context) -> bool:
         """Whether this step's update needs both ranges at one instant (the paper's ``Y``):
         then, with the pings at different times, the earlier range is carried to the later
@@ -338,6 +343,13 @@ class RelativeStateEstimator(LeafSystem):
         discrete_state.set_value(self._x_index, x0 - self.vehicle_motion.offset(context))
 
     def _calc_filtered(self, context: Context, value: AbstractValue) -> None:
+        estimate = self.filtered_estimate(context)
+        if estimate is None:
+            estimate = self._filtered_by_update(context)
+        estimate.floor = self._error_model.floor(estimate.x)
+        value.set_value(estimate)
+
+    def _filtered_by_update(self, context: Context) -> FilteredEstimate:
         prior = self.prior(context)
         ranges = self.ranges(context)
         update = None
@@ -351,8 +363,7 @@ class RelativeStateEstimator(LeafSystem):
             estimate = FilteredEstimate(update.x, update.P, VALID, update.nis)
         if self._window is not None:
             self._with_window_updates(context, estimate, update is not None)
-        estimate.floor = self._error_model.floor(estimate.x)
-        value.set_value(estimate)
+        return estimate
 
     @staticmethod
     def _no_update(ranges: Ranges) -> int:
@@ -374,10 +385,19 @@ class RelativeStateEstimator(LeafSystem):
         elif news:
             estimate.status, estimate.nis = GATED, float(sum(u.nis for u in news))
         elif estimate.status == VALID and not updated_now:
-            status = self._status_port.Eval(context)
-            arrived = status[status != NO_ARRIVAL]
-            invalid = arrived[arrived != VALID]
-            estimate.status = int(invalid[0]) if invalid.size else NO_ARRIVAL
+            estimate.status = self.arrival_status(context)
+
+    def arrival_status(self, context: Context) -> int:
+        """The status of a tick without an update: the first code of the sonars whose range
+        arrived unusable, or NO_ARRIVAL when none arrived."""
+        status = self._status_port.Eval(context)
+        arrived = status[status != NO_ARRIVAL]
+        invalid = arrived[arrived != VALID]
+        return int(invalid[0]) if invalid.size else NO_ARRIVAL
+
+    def window_outcomes(self, context: Context) -> list[StepOutcome]:
+        """The window steps' outcomes at this tick (empty with the paper's timing)."""
+        return [] if self._window is None else self._stepped.Eval(context)[2]
 
     def _declare_window_cache(self, description: str, include_now: bool):
         ports = [

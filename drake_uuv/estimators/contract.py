@@ -143,6 +143,9 @@ class MeasurementUpdate:
     P: np.ndarray
     nis: float  # normalised innovation squared νᵀ S⁻¹ ν
     dof: int  # dimension of the innovation
+    # The noise variance Γ of a linear update on the paper's Y (None for other updates): a
+    # linear start tracks its prior's share of the covariance with it.
+    gamma: float | None = None
 
 
 @dataclass

@@ -59,7 +59,7 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
         if not ranges.exact:  # the error model's: the baseline's attitude error
             gamma += ranges.difference_variance(prior.x)
         x, P, nis = range_difference_update(prior.x, prior.P, Y, m, gamma, ranges.q_s)
-        return MeasurementUpdate(x, P, nis, 1)
+        return MeasurementUpdate(x, P, nis, 1, gamma)
 
     def needs_both_ranges(self, context: Context) -> bool:
         return True

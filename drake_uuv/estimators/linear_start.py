@@ -66,7 +66,7 @@ class LinearStart:
             return None  # Y needs both ranges; predict until both return.
         Y, m, gamma = self.measurement(ranges, prior.x)
         x, P, nis = range_difference_update(prior.x, prior.P, Y, m, gamma, ranges.q_s)
-        return MeasurementUpdate(x, P, nis, 1)
+        return MeasurementUpdate(x, P, nis, 1, gamma)
 
     def prior_share(self, context: Context) -> np.ndarray:
         """``S`` of this step's prior (6×6)."""
@@ -80,15 +80,16 @@ class LinearStart:
         self,
         context: Context,
         filtered: FilteredEstimate,
-        ranges: Ranges,
+        updates: list[tuple[np.ndarray, float]],
         discrete_state: DiscreteValues,
     ) -> np.ndarray:
-        """Through this step's update (when applied) and the prediction: writes the next
-        ``S`` and returns the updated one, which the hand-over tests."""
+        """Through this tick's linear updates ``(q_s, Γ)`` and the prediction: writes the next
+        ``S`` and returns the updated one, which the hand-over tests. (With late ranges the
+        updates happened at their ping times within the window; ``S`` takes them at the tick,
+        with the tick's covariance: an approximation good enough for the hand-over's test.)"""
         S = self.prior_share(context)
-        if filtered.applied and ranges.valid.all():
-            gamma = self.measurement(ranges, filtered.x)[2]
-            S = prior_share_update(S, filtered.P, ranges.q_s, gamma)
+        for q_s, gamma in updates:
+            S = prior_share_update(S, filtered.P, q_s, gamma)
         A, _, _ = self._host.model
         discrete_state.set_value(self._prior_share_index, prior_share_predict(S, A).ravel())
         return S

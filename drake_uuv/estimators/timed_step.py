@@ -26,6 +26,8 @@ class InstantOutcome:
     nis: float
     dof: int
     new: bool
+    q_s: np.ndarray | None = None
+    gamma: float | None = None
 
 
 @dataclass
@@ -64,8 +66,11 @@ def instants(step: StepRanges, paired: bool) -> list[_Instant]:
     return out
 
 
-def gaussian_step(host, context, x: np.ndarray, P: np.ndarray, step: StepRanges) -> StepOutcome:
-    """Steps the Gaussian belief ``N(x, P)`` at ``t_k`` (stored frame) through ``step``."""
+def gaussian_step(
+    host, context, x: np.ndarray, P: np.ndarray, step: StepRanges, with_ranges: bool = True
+) -> StepOutcome:
+    """Steps the Gaussian belief ``N(x, P)`` at ``t_k`` (stored frame) through ``step`` (its
+    ranges left out without ``with_ranges``: the prediction alone)."""
     t = host.time_step
     model = host.error_model
     _, _, W = host.model
@@ -87,7 +92,7 @@ def gaussian_step(host, context, x: np.ndarray, P: np.ndarray, step: StepRanges)
 
     outcome = StepOutcome(x, P)
     paired = host.needs_both_ranges(context)
-    for instant in instants(step, paired):
+    for instant in instants(step, paired) if with_ranges else []:
         G, c, q_s = at(instant.tau)
         if paired and len(instant.sonars) == 2 and step.tau[0] != step.tau[1]:
             early = int(np.argmin(step.tau))
@@ -96,7 +101,7 @@ def gaussian_step(host, context, x: np.ndarray, P: np.ndarray, step: StepRanges)
             instant.extra[early] += variance
         y = G @ z + c
         P_y = G @ P_z @ G.T
-        ranges = _ranges(host, instant, q_s, step)
+        ranges = instant_ranges(host, instant, q_s, step)
         update: MeasurementUpdate | None = host.measurement_update(
             context, Estimate(y, P_y), ranges
         )
@@ -107,7 +112,9 @@ def gaussian_step(host, context, x: np.ndarray, P: np.ndarray, step: StepRanges)
             outcome.updates.append(InstantOutcome(GATED, update.nis, update.dof, new))
             continue
         z, P_z = update_through(z, P_z, G, y, update.x, update.P)
-        outcome.updates.append(InstantOutcome(VALID, update.nis, update.dof, new))
+        outcome.updates.append(
+            InstantOutcome(VALID, update.nis, update.dof, new, q_s, update.gamma)
+        )
     G, B = transition(t)
     outcome.x = G @ z + B @ a
     outcome.P = G @ P_z @ G.T
@@ -115,7 +122,8 @@ def gaussian_step(host, context, x: np.ndarray, P: np.ndarray, step: StepRanges)
     return outcome
 
 
-def _ranges(host, instant: _Instant, q_s: np.ndarray, step: StepRanges) -> Ranges:
+def instant_ranges(host, instant: _Instant, q_s: np.ndarray, step: StepRanges) -> Ranges:
+    """The ranges of one instant of a step, with the error model's noise."""
     samples = instant.samples
     valid = np.zeros(2, dtype=bool)
     valid[instant.sonars] = True
