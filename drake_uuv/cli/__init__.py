@@ -15,7 +15,7 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 
-from drake_uuv.cli import animate, compare, diagram, montecarlo, run
+from drake_uuv.cli import animate, compare, diagram, montecarlo, run, variants
 from drake_uuv.cli.options import (
     ArgumentParser,
     UsageError,
@@ -50,6 +50,7 @@ SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     animate.add_subcommand,
     montecarlo.add_subcommand,
     compare.add_subcommand,
+    variants.add_subcommand,
 ]
 
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_uuv.models.measurement import VALID
-from drake_uuv.models.navigation_errors import (
+from drake_uuv.models.navigation_noise import (
     difference_attitude_variance,
     range_attitude_covariance,
 )

@@ -7,7 +7,7 @@ error) into the filter:
 - **attitude noise → measurement noise**: the baseline a filter places the sonars on,
   ``R_WB_nav b``, is off by the AHRS noise: each range gets the extra covariance
   ``J Σ_θ Jᵀ``, the paper's ``Y`` the variance ``(q_s × q)ᵀ Σ_θ (q_s × q)``
-  (:mod:`drake_uuv.models.navigation_errors`);
+  (:mod:`drake_uuv.models.navigation_noise`);
 - **attitude noise → process noise** with ``vehicle_motion: commanded``: the commanded world
   acceleration ``R_nav u1`` the filter predicts with is off by ``a × θ``: ``[a]× Σ_θ [a]×ᵀ``
   added to W for the step;
@@ -34,10 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drake_uuv.models.navigation_errors import (
-    acceleration_attitude_covariance,
-    attitude_covariance,
-    heading_jacobian,
+from drake_uuv.models.navigation_noise import (
+    commanded_acceleration_noise,
+    heading_bias_floor,
+    rotation_vector_covariance,
+    sound_speed_floor,
 )
 from drake_uuv.models.timing import PingSchedule
 from drake_uuv.scenario.navigation import NavigationErrors
@@ -65,7 +66,7 @@ class ErrorModel:
         """``Σ_θ`` of the AHRS noise at a navigated attitude (None without attitude noise)."""
         if not self.attitude_noise:
             return None
-        return attitude_covariance(R_WB_nav, self.errors.attitude_noise)
+        return rotation_vector_covariance(R_WB_nav, self.errors.attitude_noise)
 
     def range_variance(self, z: np.ndarray) -> np.ndarray | None:
         """Extra variance of each range from the sound speed, ``(ε z)²`` (None without)."""
@@ -78,9 +79,8 @@ class ErrorModel:
         motion only; None otherwise)."""
         if self.navigated_motion or not self.attitude_noise:
             return None
-        return acceleration_attitude_covariance(
-            a_W, attitude_covariance(R_WB_nav, self.errors.attitude_noise)
-        )
+        sigma_theta = rotation_vector_covariance(R_WB_nav, self.errors.attitude_noise)
+        return commanded_acceleration_noise(a_W, sigma_theta)
 
     @property
     def velocity_variance(self) -> float:
@@ -96,12 +96,11 @@ class ErrorModel:
         if not self.active:
             return None
         floor = np.zeros((6, 6))
+        x = np.asarray(x, dtype=float)[np.newaxis]
         if self.errors.heading_bias > 0.0:
-            J = heading_jacobian(x)
-            floor += self.errors.heading_bias**2 * np.outer(J, J)
+            floor += heading_bias_floor(x[:, :3], x[:, 3:], self.errors.heading_bias)[0]
         if self.sound_speed_error != 0.0:
-            q = np.asarray(x, dtype=float)[:3]
-            floor[:3, :3] += self.sound_speed_error**2 * np.outer(q, q)
+            floor += sound_speed_floor(x[:, :3], self.sound_speed_error)[0]
         floor[3:, 3:] += self.velocity_variance * np.eye(3)
         return floor if floor.any() else None
 

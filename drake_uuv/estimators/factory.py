@@ -6,6 +6,7 @@ from drake_uuv.estimators.base import EstimatorSetting, RelativeStateEstimator
 from drake_uuv.estimators.kalman_filter import RangeDifferenceKalmanFilter
 from drake_uuv.estimators.range_filter import RangeFilter
 from drake_uuv.models.timing import PingSchedule
+from drake_uuv.primitives.variant_table import variant_system
 from drake_uuv.scenario import Ekf, Iekf, PaperKf, ParticleFilter, Scenario, Ukf
 
 #: Variant dataclass → the class of its system, built as ``cls(config, setting=...)``.
@@ -38,8 +39,5 @@ def estimator_setting(scenario: Scenario) -> EstimatorSetting:
 
 def make_estimator(scenario: Scenario) -> RelativeStateEstimator:
     """The estimator of ``scenario.estimator``'s variant."""
-    config = scenario.estimator
-    system = ESTIMATORS.get(type(config))
-    if system is None:
-        raise TypeError(f"estimator: no system for !{type(config).__name__} in the slot's factory")
-    return system(config, setting=estimator_setting(scenario))
+    cls = variant_system(ESTIMATORS, scenario.estimator, "estimator")
+    return cls(scenario.estimator, setting=estimator_setting(scenario))

@@ -57,6 +57,11 @@ The linear KF's own bound, :func:`kf_riccati_covariance`, is its Riccati covaria
 linear filter with the correct noise second moments it *is* the filter's MSE, whatever the
 noise distribution. Since ``Y = ½(d1² − d2²)`` is a function of the ranges, the PCRLB is
 below it (``M(k) ⪰ Cᵀ Γ⁻¹ C`` at every step by Cauchy–Schwarz).
+
+Here every range is taken at its step's tick and reaches the estimator at once, with the
+vehicle's navigation perfect. Ranges at their own ping times, counted once they arrive, are
+in :mod:`drake_uuv.models.pcrlb_timed` (the same recursion when every ping is at the tick);
+what navigation errors and the sound speed add, in :mod:`drake_uuv.models.navigation_noise`.
 """
 
 from __future__ import annotations
@@ -75,7 +80,8 @@ except (ImportError, AttributeError):  # pragma: no cover - other numpy layouts
     _inv = np.linalg.inv
 
 
-def _symmetrise(P: np.ndarray) -> np.ndarray:
+def symmetrise(P: np.ndarray) -> np.ndarray:
+    """``½(P + Pᵀ)`` of (stacked) square matrices: rounding leaves covariances asymmetric."""
     return 0.5 * (P + np.swapaxes(P, -1, -2))
 
 
@@ -143,7 +149,7 @@ def pcrlb_recursion(
         raise ValueError(f"information must have shape (N, 6, 6), got {M.shape}")
     A, _ = double_integrator(time_step)
     Q = process_noise_covariance(W, time_step)
-    P0 = _symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
+    P0 = symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
     bounds = _pcrlb_loop(M, P0, A, Q)
     if bounds is None:  # a singular or non-finite step: numpy's checked path raises or agrees
         bounds = _pcrlb_loop_checked(M, P0, A, Q)
@@ -156,9 +162,9 @@ def _pcrlb_loop_checked(M: np.ndarray, P0: np.ndarray, A: np.ndarray, Q: np.ndar
     bounds = np.empty_like(M)
     for k in range(M.shape[-3]):
         if k > 0:
-            P_pred = _symmetrise(A @ bounds[..., k - 1, :, :] @ A.T + Q)  # (Q + A J⁻¹ Aᵀ)
-        J = _symmetrise(np.linalg.inv(P_pred) + M[..., k, :, :])
-        bounds[..., k, :, :] = _symmetrise(np.linalg.inv(J))
+            P_pred = symmetrise(A @ bounds[..., k - 1, :, :] @ A.T + Q)  # (Q + A J⁻¹ Aᵀ)
+        J = symmetrise(np.linalg.inv(P_pred) + M[..., k, :, :])
+        bounds[..., k, :, :] = symmetrise(np.linalg.inv(J))
     return bounds
 
 
@@ -298,12 +304,12 @@ def kf_riccati_covariance(
     both = _availability(available, qs.shape[0]).all(axis=1)
     A, _ = double_integrator(time_step)
     Q = process_noise_covariance(W, time_step)
-    P_pred = _symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
+    P_pred = symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
     covs = np.empty((qs.shape[0], 6, 6))
     eye = np.eye(6)
     for k in range(qs.shape[0]):
         if k > 0:
-            P_pred = _symmetrise(A @ covs[k - 1] @ A.T + Q)
+            P_pred = symmetrise(A @ covs[k - 1] @ A.T + Q)
         if not both[k]:
             covs[k] = P_pred
             continue
@@ -312,7 +318,7 @@ def kf_riccati_covariance(
         S = float((C @ P_pred @ C.T)[0, 0]) + Gamma[k]
         K = P_pred @ C.T / S
         I_KC = eye - K @ C
-        covs[k] = _symmetrise(I_KC @ P_pred @ I_KC.T + Gamma[k] * (K @ K.T))
+        covs[k] = symmetrise(I_KC @ P_pred @ I_KC.T + Gamma[k] * (K @ K.T))
     return covs
 
 

@@ -1,7 +1,6 @@
 """The one dispatch every slot's factory does: a variant dataclass's type → its system."""
 
-from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import TypeVar
 
 S = TypeVar("S")
 
@@ -16,9 +15,3 @@ def variant_system(table: dict[type, S], config: object, slot: str) -> S:
     if entry is None:
         raise TypeError(f"{slot}: no system for !{type(config).__name__} in the slot's factory")
     return entry
-
-
-def build_variant(table: dict[type, Callable[[Any], S]], scenario: Any, slot: str) -> S:
-    """``table[type(scenario.<slot>)](scenario)``, for a factory whose table holds functions
-    of the whole scenario (see :func:`variant_system`)."""
-    return variant_system(table, getattr(scenario, slot), slot)(scenario)

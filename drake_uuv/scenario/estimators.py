@@ -88,7 +88,7 @@ class EstimatorOptions:
 
 @dataclass
 class PaperKf(EstimatorOptions):
-    """The paper's linear Kalman filter on ``Y = ½(d1² − d2²)`` (its eq. 9)."""
+    """The paper's linear Kalman filter on ``Y = ½(d1² − d2²)`` (its equation 9)."""
 
 
 @dataclass
@@ -249,8 +249,8 @@ class Iekf(LinearizedRangeOptions):
 
 @dataclass
 class Ukf(GaussianRangeOptions):
-    """Unscented Kalman filter on both raw ranges (scaled unscented transform, α = 1, β = 2,
-    κ = 3 − n: sigma points at ±√3 σ, every weight positive)."""
+    """Unscented Kalman filter on both raw ranges. The scaled unscented transform with α = 1,
+    β = 2, κ = 3 − n: sigma points at ±√3 σ, every weight positive."""
 
     def range_update(self) -> RangeUpdate:
         return UnscentedRangeUpdate()

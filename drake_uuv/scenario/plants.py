@@ -47,8 +47,8 @@ from drake_uuv.scenario.validation import ScenarioError
 
 @dataclass
 class KinematicUuv:
-    """The paper's vehicle (its eqs. 1–2): a world-frame double integrator driven by
-    ``R u1`` whose attitude takes any commanded value in one step. No parameters."""
+    """The paper's vehicle, a world-frame double integrator driven by ``R u1`` whose attitude
+    takes any commanded value in one step (its equations 1–2). No parameters."""
 
     def validate(self, name: str) -> None:
         pass

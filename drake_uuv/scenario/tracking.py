@@ -50,7 +50,7 @@ class TrackingOptions:
 
 @dataclass
 class PaperTracking(TrackingOptions):
-    """The paper's law (§III-B): ``u1 = −(2α/t²)(Rᵀ q̂ − q*) − (2/t) Rᵀ ϑ̂``."""
+    """The paper's law (its section III-B), ``u1 = −(2α/t²)(Rᵀ q̂ − q*) − (2/t) Rᵀ ϑ̂``."""
 
     alpha: float = 1.2
     # The paper proves bounded tracking only for α in ALPHA_PROVEN_INTERVAL.

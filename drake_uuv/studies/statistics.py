@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from drake_uuv.analysis.stats import bootstrap_interval, wilson_interval
+from drake_uuv.metrics import bound_errors_on
 from drake_uuv.models.pcrlb import bound_rmse, pcrlb_recursion
 from drake_uuv.scenario import Scenario
 
@@ -37,6 +38,13 @@ BOUND_METHOD = (
     "paper's KF's Riccati covariance with Γ on the true ranges, likewise; each √(mean over "
     "k ≥ steady_state_start of the trace of the position or velocity block)"
 )
+# Appended to BOUND_METHOD when the scenario has navigation errors or sonar timing.
+EXTENDED_BOUND_METHOD = (
+    "; with navigation errors or sonar timing, pcrlb_per_run is the extended per-run bound "
+    "(each range at its ping time once arrived, navigation noise, the biases' error floors; "
+    "pcrlb_per_run_floor is the floors' part), while pcrlb stays the Monte Carlo bound of "
+    "the ranges at the ticks they arrive, without navigation noise, latency or floors"
+)
 # Metrics the summary reads (every completed run has them).
 NEEDED_METRICS = (
     "position_rmse",
@@ -57,7 +65,11 @@ def monte_carlo_bound(information_sum: np.ndarray, runs: int, scenario: Scenario
 
     ``information_sum`` as :func:`drake_uuv.studies.storage.load_information` returns it; the
     recursion runs once on the information averaged over runs, from the prior
-    ``estimator.initial_covariance``.
+    ``estimator.initial_covariance``. With navigation errors or sonar timing
+    (:func:`drake_uuv.metrics.bound_errors_on`) it stays this bound of the ranges at the
+    ticks they arrive (:func:`drake_uuv.metrics.run_information`): it does not include the
+    ping times, the latency, the navigation noise nor the biases' error floors, which the
+    per-run bound (``pcrlb_per_run``) does.
     """
     return pcrlb_recursion(
         information_sum / runs,
@@ -79,7 +91,9 @@ def bound_summary(
     if information_sum is not None:
         covs = monte_carlo_bound(information_sum, summary["runs"], scenario)
         bounds["pcrlb"] = bound_rmse(covs, scenario.steady_state_start)
-    for name, key in (("pcrlb_per_run", "pcrlb"), ("kf_riccati", "kf_riccati")):
+    per_run = (("pcrlb_per_run", "pcrlb"), ("kf_riccati", "kf_riccati"),
+               ("pcrlb_per_run_floor", "pcrlb_floor"))  # fmt: skip
+    for name, key in per_run:
         if f"{key}_position_rmse" in column:
             position, velocity = (
                 math.sqrt(float(np.mean(column[f"{key}_{part}_rmse"] ** 2)))
@@ -101,7 +115,8 @@ def bound_summary(
                 None if v is None else _finite(v / bound) for v in summary[f"{part}_rmse_ci95"]
             ]
     if bounds:
-        out["bound_method"] = BOUND_METHOD
+        extended = EXTENDED_BOUND_METHOD if bound_errors_on(scenario) else ""
+        out["bound_method"] = BOUND_METHOD + extended
     return out
 
 
@@ -131,8 +146,10 @@ def summarize(
 
     Bounds (:data:`BOUND_METHOD`), each as ``*_position_rmse`` and ``*_velocity_rmse``:
     ``pcrlb`` (the Monte Carlo PCRLB, from ``information_sum``, Σ over runs of ``M(k)``),
-    ``pcrlb_per_run`` (√ of the mean over runs of each run's squared bound) and
-    ``kf_riccati`` (the paper's KF's Riccati covariance, likewise); and the ratios
+    ``pcrlb_per_run`` (√ of the mean over runs of each run's squared bound),
+    ``kf_riccati`` (the paper's KF's Riccati covariance, likewise) and, with navigation
+    errors or sonar timing, ``pcrlb_per_run_floor`` (the per-run bound's error floors,
+    likewise); and the ratios
     ``position_rmse_over_pcrlb``, ``velocity_rmse_over_pcrlb``,
     ``position_rmse_over_per_run_pcrlb``, ``velocity_rmse_over_per_run_pcrlb``, each with the
     RMSE's 95 % interval divided by the bound (``*_ci95``; the bound taken as exact).

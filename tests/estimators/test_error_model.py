@@ -8,11 +8,11 @@ from numpy.testing import assert_allclose
 from drake_uuv.estimators import EstimatorSetting, RangeDifferenceKalmanFilter, RangeFilter
 from drake_uuv.models.filters import ekf_update, range_difference_update
 from drake_uuv.models.measurement import range_difference_noise
-from drake_uuv.models.navigation_errors import (
-    attitude_covariance,
+from drake_uuv.models.navigation_noise import (
     difference_attitude_variance,
-    heading_jacobian,
+    heading_bias_floor,
     range_attitude_covariance,
+    rotation_vector_covariance,
 )
 from drake_uuv.models.timing import PingSchedule
 from drake_uuv.scenario import Ekf, NavigationErrors, PaperKf
@@ -51,16 +51,18 @@ def test_the_kf_adds_the_attitude_noise_of_y_to_gamma():
     context = fixed_context(kf, **inputs())
     q_s = R_WB @ B_BODY
     m, gamma = range_difference_noise("derived", ETA_UNEQUAL, RANGES * RANGES)
-    gamma += difference_attitude_variance(X0, q_s, attitude_covariance(R_WB, ERRORS.attitude_noise))
+    gamma += difference_attitude_variance(
+        X0, q_s, rotation_vector_covariance(R_WB, ERRORS.attitude_noise)
+    )
     x, P, _ = range_difference_update(
         X0, P0, 0.5 * (RANGES[0] ** 2 - RANGES[1] ** 2), m, gamma, q_s
     )
     assert_allclose(kf.GetOutputPort("x_TU_hat").Eval(context), x, rtol=1e-12)
     # The published covariance adds the floors: the heading bias's and the DVL's (none here:
     # the filter predicts with the commanded acceleration, which the DVL does not enter).
-    J = heading_jacobian(x)
+    floor = heading_bias_floor(x[None, :3], x[None, 3:], ERRORS.heading_bias)[0]
     published = kf.GetOutputPort("P_TU").Eval(context).reshape(6, 6)
-    assert_allclose(published, P + ERRORS.heading_bias**2 * np.outer(J, J), rtol=1e-12)
+    assert_allclose(published, P + floor, rtol=1e-12)
 
 
 def test_the_ekf_adds_the_attitude_noise_of_the_ranges_to_r():
@@ -71,12 +73,11 @@ def test_the_ekf_adds_the_attitude_noise_of_the_ranges_to_r():
     context = fixed_context(ekf, **inputs())
     q_s = R_WB @ B_BODY
     R = np.diag(ETA_UNEQUAL) + np.diag((0.005 * RANGES) ** 2)
-    R += range_attitude_covariance(X0, q_s, attitude_covariance(R_WB, ERRORS.attitude_noise))
+    R += range_attitude_covariance(X0, q_s, rotation_vector_covariance(R_WB, ERRORS.attitude_noise))
     x, P, nis = ekf_update(X0, P0, RANGES, q_s, R)
     assert_allclose(ekf.GetOutputPort("x_TU_hat").Eval(context), x, rtol=1e-12)
     assert ekf.GetOutputPort("nis").Eval(context)[0] == pytest.approx(nis, rel=1e-12)
-    J = heading_jacobian(x)
-    floor = ERRORS.heading_bias**2 * np.outer(J, J)
+    floor = heading_bias_floor(x[None, :3], x[None, 3:], ERRORS.heading_bias)[0]
     floor[:3, :3] += 0.005**2 * np.outer(x[:3], x[:3])
     published = ekf.GetOutputPort("P_TU").Eval(context).reshape(6, 6)
     assert_allclose(published, P + floor, rtol=1e-12, atol=1e-15)
@@ -88,8 +89,7 @@ def test_with_navigated_motion_the_dvl_walks_the_position_and_blurs_the_velocity
     model = kf.error_model
     variance = ERRORS.velocity_noise**2 + ERRORS.velocity_bias**2
     assert model.velocity_variance == pytest.approx(variance)
-    J = heading_jacobian(X0)
-    expected = ERRORS.heading_bias**2 * np.outer(J, J)
+    expected = heading_bias_floor(X0[None, :3], X0[None, 3:], ERRORS.heading_bias)[0]
     expected[3:, 3:] += variance * np.eye(3)
     assert_allclose(model.floor(X0), expected, rtol=1e-12)
 

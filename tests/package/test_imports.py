@@ -57,7 +57,7 @@ SUBLAYERS: dict[str, list[set[str]]] = {
     ],
     "cli": [
         {"options"},
-        {"run", "diagram", "animate", "montecarlo", "compare"},
+        {"run", "diagram", "animate", "montecarlo", "compare", "variants"},
         {ROOT},
         {"__main__"},
     ],

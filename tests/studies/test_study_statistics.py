@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 
 from drake_uuv.models.motion import process_noise_covariance
+from drake_uuv.scenario import load_scenario
 from drake_uuv.studies.statistics import (
     BOUND_METHOD,
     DIVERGENCE_THRESHOLD,
+    EXTENDED_BOUND_METHOD,
     NEEDED_METRICS,
     bound_summary,
     monte_carlo_bound,
@@ -133,3 +135,21 @@ def test_summary_has_the_monte_carlo_bound_with_an_information_sum(paper):
     assert summary["position_rmse_over_pcrlb"] == pytest.approx(
         0.2 / summary["pcrlb_position_rmse"]
     )
+
+
+def test_with_navigation_errors_the_per_run_bound_has_its_floor_and_says_so(paper):
+    column = {
+        "pcrlb_position_rmse": np.array([3.0, 5.0]),
+        "pcrlb_velocity_rmse": np.array([2.0, 2.0]),
+        "pcrlb_floor_position_rmse": np.array([1.0, 7.0]),  # √((1 + 49)/2) = 5
+        "pcrlb_floor_velocity_rmse": np.array([0.0, 0.0]),
+    }
+    summary = {"runs": 2, "position_rmse": 10.0, "position_rmse_ci95": [5.0, 20.0],
+               "velocity_rmse": 4.0, "velocity_rmse_ci95": [1.0, 3.0]}  # fmt: skip
+    errors = load_scenario("paper", ["sonar.latency=0.5"])
+    out = bound_summary(summary, column, errors, np.zeros((paper.steps, 6, 6)))
+    assert out["pcrlb_per_run_floor_position_rmse"] == 5.0
+    assert out["pcrlb_per_run_position_rmse"] == pytest.approx(math.sqrt(17.0))
+    assert out["bound_method"] == BOUND_METHOD + EXTENDED_BOUND_METHOD
+    assert "pcrlb stays the Monte Carlo bound" in out["bound_method"]
+    assert bound_summary(summary, column, paper, None)["bound_method"] == BOUND_METHOD

@@ -1,0 +1,230 @@
+"""The PCRLB with ranges at their ping times, counted once arrived (models/pcrlb_timed)."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from drake_uuv.models.pcrlb import pcrlb_along_trajectory
+from drake_uuv.models.pcrlb_timed import pcrlb_timed, ping_rows, step_transition
+from tests.conftest import ETA_UNEQUAL, T, W
+
+
+def _psd_le(a: np.ndarray, b: np.ndarray, rtol: float = 1e-9) -> bool:
+    """a ⪯ b (all stacked matrices), up to rounding."""
+    gap = np.linalg.eigvalsh(b - a).min(axis=-1)
+    return bool(np.all(gap >= -rtol * np.abs(b).max()))
+
+
+def _geometry(steps: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return rng.normal(size=(steps, 3)) * 2.0 + [-2.0, -2.0, 0.0], rng.normal(size=(steps, 3))
+
+
+def _noise(steps: int, rng: np.random.Generator, correlated: bool = True) -> np.ndarray:
+    """Each step's 2×2 range-error covariance (a shared error makes a cross term)."""
+    noise = np.zeros((steps, 2, 2))
+    noise[:, [0, 1], [0, 1]] = ETA_UNEQUAL
+    if correlated:
+        shared = rng.normal(size=(steps, 2)) * 0.05
+        noise += shared[:, :, None] * shared[:, None, :]
+    return noise
+
+
+def _timing(steps: int, offsets: tuple[float, float], latency: float, rng: np.random.Generator):
+    """Ping offsets, arrival lags ``ceil((τ + L)/t)`` and a few pings that never arrive."""
+    tau = np.broadcast_to(np.asarray(offsets), (steps, 2)).copy()
+    lag = np.ceil((tau + latency) / T - 1e-9).astype(int)
+    tau[rng.random((steps, 2)) < 0.15] = np.nan  # dropped
+    return tau, lag
+
+
+def test_pings_at_the_tick_reduce_to_todays_recursion() -> None:
+    """τ = 0 and no latency: the augmented step is today's recursion, to rounding."""
+    steps = 60
+    q, q_s = _geometry(steps, 0)
+    available = np.random.default_rng(1).random((steps, 2)) > 0.2
+    today = pcrlb_along_trajectory(q, q_s, 2.0 * np.eye(6), W, ETA_UNEQUAL, 3, T, available)
+    noise = np.zeros((steps, 2, 2))
+    noise[:, [0, 1], [0, 1]] = ETA_UNEQUAL / 3
+    p_TS = np.stack([q + 0.5 * q_s, q - 0.5 * q_s], axis=1)
+    tau = np.where(available, 0.0, np.nan)
+    mine = pcrlb_timed(tau, np.zeros((steps, 2), int), p_TS, noise, 2.0 * np.eye(6), W, T)
+    assert np.abs(mine - today).max() <= 1e-12 * np.abs(today).max()
+
+
+def _position_map(time: float, steps: int) -> np.ndarray:
+    """``q(time)`` as a linear map (3 × (6 + 6·steps)) of ``[x_0, ū_0, w_0, ū_1, w_1, …]``,
+    written out from the kinematics: ``ū_k`` acts over ``[k t, (k+1) t)``, ``w_k`` (a
+    position jump) at the end of step k."""
+    L = np.zeros((3, 6 + 6 * steps))
+    L[:, :3], L[:, 3:6] = np.eye(3), time * np.eye(3)
+    for k in range(steps):
+        start, end = k * T, (k + 1) * T
+        if time <= start:
+            break
+        if time < end:
+            weight = 0.5 * (time - start) ** 2
+        else:
+            weight = 0.5 * T * T + T * (time - end)
+            L[:, 6 + 6 * k + 3 : 6 + 6 * k + 6] = np.eye(3)
+        L[:, 6 + 6 * k : 6 + 6 * k + 3] = -weight * np.eye(3)
+    return L
+
+
+def _velocity_map(time: float, steps: int) -> np.ndarray:
+    L = np.zeros((3, 6 + 6 * steps))
+    L[:, 3:6] = np.eye(3)
+    for k in range(steps):
+        L[:, 6 + 6 * k : 6 + 6 * k + 3] = -np.clip(time - k * T, 0.0, T) * np.eye(3)
+    return L
+
+
+def _batch_bound(tau, lag, p_TS, noise, P0, Ws, position_noise, tick) -> np.ndarray:
+    """The posterior covariance of ``x(tick)`` from every ping arrived by ``tick``: one
+    linear-Gaussian problem on the whole history (no recursion)."""
+    steps = len(tau)
+    prior = [P0] + [block for k in range(steps) for block in (Ws[k], position_noise[k] * np.eye(3))]
+    information = np.linalg.inv(_block_diagonal(prior))
+    for k in range(steps):
+        counted = [i for i in (0, 1) if np.isfinite(tau[k, i]) and lag[k, i] <= tick - k]
+        if not counted:
+            continue
+        rows = np.array(
+            [
+                p_TS[k, i] / np.linalg.norm(p_TS[k, i]) @ _position_map(k * T + tau[k, i], steps)
+                for i in counted
+            ]
+        )
+        R = noise[k][np.ix_(counted, counted)]
+        information += rows.T @ np.linalg.solve(R, rows)
+    L = np.vstack([_position_map(tick * T, steps), _velocity_map(tick * T, steps)])
+    return L @ np.linalg.solve(information, L.T)
+
+
+def _block_diagonal(blocks: list[np.ndarray]) -> np.ndarray:
+    size = sum(len(b) for b in blocks)
+    out, at = np.zeros((size, size)), 0
+    for b in blocks:
+        out[at : at + len(b), at : at + len(b)] = b
+        at += len(b)
+    return out
+
+
+@pytest.mark.parametrize("offsets, latency", [((0.0, 0.0), 0.0), ((0.1, 0.35), 0.0),
+                                              ((0.0, 0.25), 0.7), ((0.45, 0.2), 1.3)])  # fmt: skip
+def test_the_bound_is_the_batch_posterior_of_the_whole_history(offsets, latency) -> None:
+    """Against the information of every arrived ping on ``[x_0, ū_0, …]`` at once."""
+    steps = 7
+    rng = np.random.default_rng(2)
+    tau, lag = _timing(steps, offsets, latency, rng)
+    q, _ = _geometry(steps, 3)
+    p_TS = np.stack([q + [0.5, 0.4, 0.0], q - [0.5, 0.4, 0.0]], axis=1)
+    noise = _noise(steps, rng)
+    P0 = np.diag([1.0, 2.0, 0.5, 0.3, 0.2, 0.1])
+    Ws = W + 0.002 * rng.random((steps, 1, 1)) * np.eye(3)
+    position_noise = 1e-3 * rng.random(steps)
+    bounds = pcrlb_timed(tau, lag, p_TS, noise, P0, Ws, T, position_noise=position_noise)
+    for tick in range(steps):
+        expected = _batch_bound(tau, lag, p_TS, noise, P0, Ws, position_noise, tick)
+        assert_allclose(bounds[tick], expected, rtol=1e-9, atol=1e-12)
+
+
+def test_the_bound_is_the_error_covariance_of_simulated_runs() -> None:
+    """Monte Carlo of the linear-Gaussian model on a fine time grid: the best linear
+    estimate of ``x_j`` from the pings arrived by tick j, fitted on the runs themselves, has
+    the bound as its error covariance (to sampling error)."""
+    steps, tick, runs, grid = 4, 3, 100_000, 20
+    offsets, latency = (0.1, 0.35), 0.6  # on the grid: 4 and 14 of 20 substeps
+    rng = np.random.default_rng(5)
+    tau = np.broadcast_to(np.asarray(offsets), (steps, 2)).copy()
+    lag = np.ceil((tau + latency) / T - 1e-9).astype(int)
+    los = rng.normal(size=(steps, 2, 3))
+    los /= np.linalg.norm(los, axis=-1, keepdims=True)
+    noise = _noise(steps, rng)
+    P0 = np.diag([1.0, 2.0, 0.5, 0.3, 0.2, 0.1])
+    x = rng.multivariate_normal(np.zeros(6), P0, size=runs)
+    p, v = x[:, :3].copy(), x[:, 3:].copy()
+    measured, h = [], T / grid
+    for k in range(tick):
+        u_bar = rng.multivariate_normal(np.zeros(3), W, size=runs)
+        errors = rng.multivariate_normal(np.zeros(2), noise[k], size=runs)
+        for n in range(grid):  # exact for the step's constant acceleration −ū
+            for i in (0, 1):
+                if round(tau[k, i] / h) == n and lag[k, i] <= tick - k:
+                    measured.append(p @ los[k, i] + errors[:, i])
+            p, v = p + h * v - 0.5 * h * h * u_bar, v - h * u_bar
+    y = np.column_stack(measured)
+    truth = np.hstack([p, v])
+    fit, *_ = np.linalg.lstsq(y, truth, rcond=None)
+    residual = truth - y @ fit
+    sample = residual.T @ residual / (runs - y.shape[1])
+    bound = pcrlb_timed(tau, lag, los, noise, P0, W, T)[tick]
+    standard_error = np.sqrt((np.outer(np.diag(bound), np.diag(bound)) + bound**2) / runs)
+    assert np.all(np.abs(sample - bound) <= 5.0 * standard_error)
+    assert y.shape[1] == 4  # pings of steps 0 and 1 by tick 3; step 2's are in flight
+
+
+def _direct_bound(tau, lag, p_TS, noise, P0, tick) -> np.ndarray:
+    """Tick ``tick``'s bound, every step from the prior again with what has arrived by then."""
+    G = step_transition(T)
+    P = P0
+    for k in range(tick + 1):
+        J = np.zeros((9, 9))
+        J[:6, :6], J[6:, 6:] = np.linalg.inv(P), np.linalg.inv(W)
+        counted = [i for i in (0, 1) if np.isfinite(tau[k, i]) and lag[k, i] <= tick - k]
+        if counted:
+            u = p_TS[k, counted] / np.linalg.norm(p_TS[k, counted], axis=1, keepdims=True)
+            H = ping_rows(tau[k, counted], u)
+            J += H.T @ np.linalg.solve(noise[k][np.ix_(counted, counted)], H)
+        if k == tick:
+            return np.linalg.inv(J[:6, :6])
+        P = G @ np.linalg.inv(J) @ G.T
+
+
+def test_the_latency_window_is_a_direct_recomputation_at_every_tick() -> None:
+    steps = 40
+    rng = np.random.default_rng(7)
+    tau, lag = _timing(steps, (0.05, 0.4), 4.8, rng)  # up to ten steps in flight
+    q, q_s = _geometry(steps, 8)
+    p_TS = np.stack([q + 0.5 * q_s, q - 0.5 * q_s], axis=1)
+    noise = _noise(steps, rng)
+    bounds = pcrlb_timed(tau, lag, p_TS, noise, np.eye(6), W, T)
+    assert lag.max() == 11
+    for tick in range(steps):
+        direct = _direct_bound(tau, lag, p_TS, noise, np.eye(6), tick)
+        assert_allclose(bounds[tick], direct, rtol=1e-9, atol=1e-13)
+
+
+def test_more_noise_or_later_arrivals_never_lower_the_bound() -> None:
+    steps = 50
+    rng = np.random.default_rng(9)
+    tau, lag = _timing(steps, (0.1, 0.3), 0.0, rng)
+    q, q_s = _geometry(steps, 10)
+    p_TS = np.stack([q + 0.5 * q_s, q - 0.5 * q_s], axis=1)
+    noise = _noise(steps, rng, correlated=False)
+    base = pcrlb_timed(tau, lag, p_TS, noise, np.eye(6), W, T)
+    worse = [
+        pcrlb_timed(tau, lag + 2, p_TS, noise, np.eye(6), W, T),
+        pcrlb_timed(tau, lag, p_TS, _noise(steps, rng) + noise, np.eye(6), W, T),
+        pcrlb_timed(tau, lag, p_TS, noise, np.eye(6), 2.0 * W, T),
+        pcrlb_timed(tau, lag, p_TS, noise, np.eye(6), W, T, position_noise=1e-4),
+    ]
+    for bound in worse:
+        assert _psd_le(base, bound)
+        assert (
+            np.trace(bound[10:], axis1=1, axis2=2).mean()
+            > np.trace(base[10:], axis1=1, axis2=2).mean()
+        )
+
+
+def test_bad_timing_is_named() -> None:
+    p_TS, noise = np.ones((3, 2, 3)), np.broadcast_to(np.eye(2), (3, 2, 2))
+    lag = np.ones((3, 2), int)
+    with pytest.raises(ValueError, match=r"tau must be in \[0, time_step = 0.5\)"):
+        pcrlb_timed(np.full((3, 2), 0.5), lag, p_TS, noise, np.eye(6), W, T)
+    with pytest.raises(ValueError, match="lag must be ≥ 0, got -1"):
+        pcrlb_timed(np.zeros((3, 2)), -lag, p_TS, noise, np.eye(6), W, T)
+    with pytest.raises(ValueError, match="cannot arrive at its own step's tick"):
+        pcrlb_timed(np.full((3, 2), 0.1), 0 * lag, p_TS, noise, np.eye(6), W, T)
+    with pytest.raises(ValueError, match=r"tau must have shape \(N, 2\)"):
+        pcrlb_timed(np.zeros(3), lag, p_TS, noise, np.eye(6), W, T)

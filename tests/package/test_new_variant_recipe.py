@@ -1,0 +1,326 @@
+"""ARCHITECTURE.md's recipe, followed with throwaway variants in a copy of the repository.
+
+A new estimator, attitude strategy or plant is four files: its module, its dataclass (in the
+slot's scenario module, added to the slot's union), one line in its slot's factory (and the
+import it needs), and its test. Each case here writes exactly those into a copy of the
+repository and runs the new test with every test that enumerates the registered variants
+(scenario loading and fuzzing, the builder's registry, the diagram of every variant, the
+variants command, the package's architecture), which must all pass without another edit.
+"""
+
+import shutil
+import subprocess
+import sys
+import textwrap
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+#: The tests that enumerate the registered variants.
+REGISTRY_TESTS = [
+    "tests/scenario",
+    "tests/closed_loop/test_diagram.py",
+    "tests/visualization/test_diagram_graph.py",
+    "tests/cli/test_variants_command.py",
+    "tests/package",
+]
+
+
+@dataclass(frozen=True)
+class Recipe:
+    slot: str
+    tag: str
+    module: str  # path of the new module
+    module_text: str
+    config_file: str  # the slot's scenario module
+    config_text: str
+    union: str  # the union's name in config_file
+    factory_file: str
+    factory_import: str
+    table: str  # the factory table's name
+    entry: str
+    test_text: str
+
+
+FROZEN = Recipe(
+    slot="estimator",
+    tag="Frozen",
+    module="drake_uuv/estimators/frozen.py",
+    module_text='''
+        """An estimator that publishes its initial estimate (the recipe's example)."""
+
+        from pydrake.systems.framework import Context
+
+        from drake_uuv.estimators.base import (
+            Estimate,
+            FilteredEstimate,
+            MeasurementUpdate,
+            Ranges,
+            RelativeStateEstimator,
+        )
+
+
+        class FrozenEstimator(RelativeStateEstimator):
+            """Publishes ``Υ̂(0|−1)`` and ``P(0|−1)`` at every step; ports as the base's."""
+
+            def measurement_update(
+                self, context: Context, prior: Estimate, ranges: Ranges
+            ) -> MeasurementUpdate | None:
+                return None
+
+            def filtered_estimate(self, context: Context) -> FilteredEstimate:
+                start = self.initial_estimate
+                return FilteredEstimate(start.x.copy(), start.P.copy())
+        ''',
+    config_file="drake_uuv/scenario/estimators.py",
+    config_text='''
+
+        @dataclass
+        class Frozen(EstimatorOptions):
+            """Publishes its initial estimate at every step (the recipe's example)."""
+        ''',
+    union="EstimatorConfig",
+    factory_file="drake_uuv/estimators/factory.py",
+    factory_import="from drake_uuv.estimators.frozen import FrozenEstimator\n"
+    "from drake_uuv.scenario.estimators import Frozen\n",
+    table="ESTIMATORS",
+    entry="    Frozen: FrozenEstimator,\n",
+    test_text="""
+        import numpy as np
+
+        from drake_uuv.scenario import load_scenario
+        from drake_uuv.simulation import simulate
+
+
+        def test_the_frozen_estimate_never_moves():
+            start = [-2.0, -2.0, 0.0, 0.0, 0.0, 0.0]
+            scenario = load_scenario(
+                "paper", ["estimator=!Frozen", f"estimator.initial_estimate={start}", "steps=20",
+                          "steady_state_start=0"]
+            )
+            log = simulate(scenario).log
+            assert np.all(log["x_TU_hat"] == np.array(start))
+        """,
+)
+SPIN = Recipe(
+    slot="attitude",
+    tag="Spin",
+    module="drake_uuv/attitude/spin.py",
+    module_text='''
+        """Turns about the world's vertical at a constant rate (the recipe's example)."""
+
+        from pydrake.systems.framework import BasicVector, Context, LeafSystem
+
+        from drake_uuv.attitude.base import AttitudeSetting
+        from drake_uuv.scenario.attitude import Spin
+
+
+        class SpinAttitude(LeafSystem):
+            """``u2 = [0, 0, rate]``; the plan holds the current attitude.
+
+            .. pydrake_system::
+
+                name: SpinAttitude
+                input_ports:
+                - R_WB
+                output_ports:
+                - u2_W
+                - R_WB_plan
+            """
+
+            def __init__(self, config: Spin, *, setting: AttitudeSetting) -> None:
+                super().__init__()
+                self._rate = config.rate
+                self._attitude = self.DeclareVectorInputPort("R_WB", 9)
+                self.DeclareVectorOutputPort("u2_W", 3, self._calc_rate)
+                self.DeclareVectorOutputPort("R_WB_plan", 18, self._calc_plan)
+
+            def _calc_rate(self, context: Context, output: BasicVector) -> None:
+                output.set_value([0.0, 0.0, self._rate])
+
+            def _calc_plan(self, context: Context, output: BasicVector) -> None:
+                R = self._attitude.Eval(context)
+                output.set_value([*R, *R])
+        ''',
+    config_file="drake_uuv/scenario/attitude.py",
+    config_text='''
+
+        @dataclass
+        class Spin:
+            """Turns about the world's vertical at a constant rate (the recipe's example)."""
+
+            rate: float = 0.5  # [rad/s]
+
+            def validate(self, name: str) -> None:
+                check_positive(f"{name}.rate", self.rate)
+        ''',
+    union="AttitudeConfig",
+    factory_file="drake_uuv/attitude/factory.py",
+    factory_import="from drake_uuv.attitude.spin import SpinAttitude\n"
+    "from drake_uuv.scenario.attitude import Spin\n",
+    table="ATTITUDE_GENERATORS",
+    entry="    Spin: SpinAttitude,\n",
+    test_text="""
+        import numpy as np
+
+        from drake_uuv.scenario import ScenarioError, load_scenario
+        from drake_uuv.simulation import simulate
+
+        import pytest
+
+
+        def test_the_spin_turns_the_baseline_about_the_vertical():
+            scenario = load_scenario("paper", ["attitude=!Spin {rate: 0.4}", "steps=10",
+                                               "steady_state_start=0"])
+            b_W = simulate(scenario).log["b_W"]
+            angle = np.arctan2(b_W[:, 1], b_W[:, 0])
+            assert np.allclose(np.diff(np.unwrap(angle)), 0.4 * scenario.time_step)
+            with pytest.raises(ScenarioError, match=r"^attitude.rate: must be > 0, got -1"):
+                load_scenario("paper", ["attitude=!Spin {rate: -1}"])
+        """,
+)
+DRIFTING = Recipe(
+    slot="plant",
+    tag="DriftingUuv",
+    module="drake_uuv/plants/drifting_uuv.py",
+    module_text='''
+        """The paper's vehicle carried by a uniform current (the recipe's example)."""
+
+        import numpy as np
+        from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
+
+        from drake_uuv.models.motion import double_integrator_step
+        from drake_uuv.models.so3 import exp_so3
+        from drake_uuv.plants.base import PlantSetting
+        from drake_uuv.scenario.plants import DriftingUuv
+
+
+        class DriftingUuvPlant(LeafSystem):
+            """The paper's plant plus a current c: ``p(k+1) = p + t v + ½t² R u1 + t c``.
+
+            .. pydrake_system::
+
+                name: DriftingUuvPlant
+                input_ports:
+                - u1_B
+                - u2_W
+                output_ports:
+                - p_WU
+                - v_WU
+                - R_WB
+            """
+
+            def __init__(self, config: DriftingUuv, *, setting: PlantSetting) -> None:
+                super().__init__()
+                self._t = setting.time_step
+                self._current = np.asarray(config.current, dtype=float)
+                self._u1 = self.DeclareVectorInputPort("u1_B", 3)
+                self._u2 = self.DeclareVectorInputPort("u2_W", 3)
+                self._p = self.DeclareDiscreteState(np.asarray(setting.initial_position, float))
+                self._v = self.DeclareDiscreteState(np.asarray(setting.initial_velocity, float))
+                self._R = self.DeclareDiscreteState(np.asarray(setting.initial_R_WB).ravel())
+                self.DeclarePeriodicDiscreteUpdateEvent(self._t, 0.0, self._update)
+                self.DeclareStateOutputPort("p_WU", self._p)
+                self.DeclareStateOutputPort("v_WU", self._v)
+                self.DeclareStateOutputPort("R_WB", self._R)
+
+            def _update(self, context: Context, state: DiscreteValues) -> None:
+                values = context.get_discrete_state()
+                R = values.value(self._R).reshape(3, 3)
+                p, v = double_integrator_step(
+                    values.value(self._p), values.value(self._v), R @ self._u1.Eval(context),
+                    self._t,
+                )
+                state.set_value(self._p, p + self._t * self._current)
+                state.set_value(self._v, v)
+                state.set_value(self._R, (exp_so3(self._u2.Eval(context) * self._t) @ R).ravel())
+        ''',
+    config_file="drake_uuv/scenario/plants.py",
+    config_text='''
+
+        @dataclass
+        class DriftingUuv:
+            """The paper's vehicle carried by a uniform current (the recipe's example)."""
+
+            current: list[float] = field(default_factory=lambda: [0.1, 0.0, 0.0])  # [m/s]
+
+            def validate(self, name: str) -> None:
+                if len(self.current) != 3:
+                    raise ScenarioError(f"{name}.current: must be 3 numbers, got {self.current!r}")
+        ''',
+    union="PlantConfig",
+    factory_file="drake_uuv/plants/factory.py",
+    factory_import="from drake_uuv.plants.drifting_uuv import DriftingUuvPlant\n"
+    "from drake_uuv.scenario.plants import DriftingUuv\n",
+    table="PLANTS",
+    entry="    DriftingUuv: DriftingUuvPlant,\n",
+    test_text="""
+        import numpy as np
+
+        from drake_uuv.scenario import load_scenario
+        from drake_uuv.simulation import simulate
+
+
+        def test_the_current_moves_the_vehicle():
+            common = ["steps=6", "steady_state_start=0"]
+            still = simulate(load_scenario("paper", common)).log["p_WU"]
+            drifting = simulate(load_scenario("paper", [*common, "plant=!DriftingUuv"])).log
+            assert np.allclose(drifting["p_WU"][1] - still[1], [0.05, 0.0, 0.0])
+        """,
+)
+
+
+def _apply(root: Path, recipe: Recipe) -> list[str]:
+    """Writes the recipe's four files into ``root``; returns their paths."""
+    (root / recipe.module).write_text(textwrap.dedent(recipe.module_text).lstrip())
+    config = root / recipe.config_file
+    text = config.read_text()
+    head, union_line = text.rsplit(f"{recipe.union} = ", 1)
+    first, rest = union_line.split("\n", 1)
+    text = (
+        head.rstrip()
+        + "\n"
+        + textwrap.dedent(recipe.config_text)
+        + f"\n\n{recipe.union} = {first} | {recipe.tag}\n"
+        + rest
+    )
+    config.write_text(text)
+    factory = root / recipe.factory_file
+    text = factory.read_text()
+    text = text.replace(
+        "\n\n#: Variant dataclass", "\n" + recipe.factory_import + "\n#: Variant dataclass", 1
+    )
+    table_start = text.index(f"{recipe.table}: dict")
+    table_end = text.index("\n}\n", table_start)
+    text = text[:table_end] + "\n" + recipe.entry.rstrip("\n") + text[table_end:]
+    factory.write_text(text)
+    test = root / "tests" / "package" / f"test_recipe_{recipe.tag.lower()}.py"
+    test.write_text(textwrap.dedent(recipe.test_text).lstrip())
+    return [recipe.module, recipe.config_file, recipe.factory_file, str(test.relative_to(root))]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("recipe", [FROZEN, SPIN, DRIFTING], ids=lambda r: r.slot)
+def test_a_new_variant_is_four_files(tmp_path: Path, recipe: Recipe) -> None:
+    root = tmp_path / "repo"
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".pytest_cache")
+    for folder in ("drake_uuv", "tests", "diagrams", "studies"):
+        shutil.copytree(REPO / folder, root / folder, ignore=ignore)
+    for name in ("pyproject.toml", "README.md", "ARCHITECTURE.md"):
+        shutil.copy(REPO / name, root / name)
+    written = _apply(root, recipe)
+    assert len(written) == 4
+    command = [
+        sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", "-m", "not slow",
+        *REGISTRY_TESTS, written[-1],
+    ]  # fmt: skip
+    result = subprocess.run(command, cwd=root, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    # The new variant is in the copy's registry, not in this one's.
+    check = subprocess.run(
+        [sys.executable, "-m", "drake_uuv.cli", "variants"], cwd=root, capture_output=True,
+        text=True, timeout=120,
+    )  # fmt: skip
+    assert f"!{recipe.tag} " in check.stdout
