@@ -10,7 +10,6 @@ the shared estimate only through the public accessors (:meth:`~RelativeStateEsti
 """
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -23,107 +22,22 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
+from drake_uuv.estimators.contract import (
+    Estimate,
+    EstimatorSetting,
+    FilteredEstimate,
+    MeasurementUpdate,
+    Ranges,
+)
+from drake_uuv.estimators.error_model import ErrorModel, ideal_model
+from drake_uuv.estimators.ping_window import PingWindow
+from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
 from drake_uuv.estimators.vehicle_motion import VEHICLE_MOTIONS
 from drake_uuv.models.filters import predict
-from drake_uuv.models.measurement import GATED, VALID
+from drake_uuv.models.measurement import GATED, NO_ARRIVAL, VALID
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
 from drake_uuv.models.statistics import chi2_ppf
 from drake_uuv.scenario.estimators import EstimatorOptions
-
-
-@dataclass(frozen=True)
-class EstimatorSetting:
-    """What every estimator gets from the rest of the scenario (the builder passes it).
-
-    - ``time_step`` t [s] of the loop.
-    - ``acceleration_covariance``: W (3×3) of the target's random walk [m²/s⁴]
-      (``target.acceleration_covariance``).
-    - ``noise_variances``: η1, η2 of the two sonars' range noise [m²]
-      (``sonar.noise_variances``).
-    - ``samples_per_step``: f, range samples per sonar and step (``sonar.samples_per_step``).
-    - ``baseline_B``: b = ᵇp_s1 − ᵇp_s2 in the body frame [m] (``sonar.baseline``): the world
-      baseline ``q_s = R_WB b`` of a step follows from the attitude.
-    """
-
-    time_step: float
-    acceleration_covariance: np.ndarray
-    noise_variances: np.ndarray
-    samples_per_step: int = 1
-    baseline_B: np.ndarray = field(default_factory=lambda: np.array([-1.0, 1.0, 0.0]))
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.time_step) and self.time_step > 0.0):
-            raise ValueError(f"time_step: must be > 0, got {self.time_step!r}")
-        W = np.asarray(self.acceleration_covariance, dtype=float)
-        if W.shape != (3, 3) or not np.all(np.isfinite(W)):
-            raise ValueError(f"acceleration_covariance: must be a finite 3×3 matrix, got {W!r}")
-        eta = np.asarray(self.noise_variances, dtype=float).reshape(-1)
-        if eta.shape != (2,) or not np.all(np.isfinite(eta)) or np.any(eta <= 0.0):
-            raise ValueError(f"noise_variances: must be two numbers > 0, got {eta.tolist()!r}")
-        f = self.samples_per_step
-        if isinstance(f, bool) or int(f) != f or f < 1:
-            raise ValueError(f"samples_per_step: must be an integer ≥ 1, got {f!r}")
-        b = np.asarray(self.baseline_B, dtype=float)
-        if b.shape != (3,) or not np.all(np.isfinite(b)):
-            raise ValueError(f"baseline_B: must be 3 finite numbers, got {self.baseline_B!r}")
-        object.__setattr__(self, "acceleration_covariance", W)
-        object.__setattr__(self, "noise_variances", eta)
-        object.__setattr__(self, "samples_per_step", int(f))
-        object.__setattr__(self, "baseline_B", b)
-
-
-@dataclass
-class Estimate:
-    """A relative state estimate ``[q, ϑ]`` and its covariance."""
-
-    x: np.ndarray
-    P: np.ndarray
-
-
-@dataclass(frozen=True)
-class Ranges:
-    """One step's ranges, as an estimator reads them.
-
-    ``samples`` (2×f, sonar 1's row first; NaN without a return), ``z`` the per-sonar sample
-    means, ``valid`` which sonars returned a usable range (status VALID and finite samples),
-    ``status`` the sonar's per-sonar codes, ``q_s`` the world baseline ``R_WB b`` [m].
-    """
-
-    samples: np.ndarray
-    z: np.ndarray
-    valid: np.ndarray
-    status: np.ndarray
-    q_s: np.ndarray
-
-    @property
-    def sonars(self) -> np.ndarray:
-        """The indices of the sonars that returned."""
-        return np.flatnonzero(self.valid)
-
-
-@dataclass
-class MeasurementUpdate:
-    """A variant's proposed update: the posterior and its innovation statistic."""
-
-    x: np.ndarray
-    P: np.ndarray
-    nis: float  # normalised innovation squared νᵀ S⁻¹ ν
-    dof: int  # dimension of the innovation
-
-
-@dataclass
-class FilteredEstimate:
-    """``Υ̂(k|k)``, ``P(k|k)``, the step's measurement status and NIS (NaN: no update)."""
-
-    x: np.ndarray
-    P: np.ndarray
-    status: int = VALID
-    nis: float = math.nan
-
-    @property
-    def applied(self) -> bool:
-        """Whether a measurement update was applied (VALID with a finite NIS)."""
-        return self.status == VALID and math.isfinite(self.nis)
 
 
 class RelativeStateEstimator(LeafSystem):
@@ -202,6 +116,23 @@ class RelativeStateEstimator(LeafSystem):
         self.vehicle_motion = VEHICLE_MOTIONS[config.vehicle_motion](self)
         if self.vehicle_motion.state_ports:
             self.DeclareInitializationDiscreteUpdateEvent(self._start_in_stored_frame)
+        navigated = bool(self.vehicle_motion.state_ports)
+        if config.error_model == "ideal":
+            self._error_model = ideal_model(self._time_step)
+        else:
+            self._error_model = ErrorModel(
+                setting.navigation_errors, setting.ping_schedule, setting.sound_speed_error,
+                navigated,
+            )  # fmt: skip
+        self._window = None
+        if not self._error_model.schedule.immediate:
+            self._window = PingWindow(
+                self, self._error_model.schedule, self._f, self._attitude_port,
+                self.vehicle_motion.state_ports or [self.vehicle_motion.acceleration_port],
+                navigated,
+            )  # fmt: skip
+            self._stepped = self._declare_window_cache("ranges arrived by this tick", True)
+            self._stepped_before = self._declare_window_cache("ranges arrived before", False)
         self._filtered = self.DeclareCacheEntry(
             "filtered estimate",
             ValueProducer(
@@ -213,12 +144,17 @@ class RelativeStateEstimator(LeafSystem):
         depends = {self._filtered.ticket()}
         self.DeclareVectorOutputPort("x_TU_hat", 6, self._calc_x_hat, depends)
         self.DeclareVectorOutputPort("P_TU", 36, self._calc_P, depends)
-        if self.vehicle_motion.state_ports:
+        if self._window is not None:  # the belief stepped through the window's earlier ranges
+            before = {self._stepped_before.ticket()}
+            self.DeclareVectorOutputPort("x_TU_prior", 6, self._calc_prior_before, before)
+            self.DeclareVectorOutputPort("P_TU_prior", 36, self._calc_P_prior_before, before)
+        elif self.vehicle_motion.state_ports:
             prior_tickets = {self.xd_ticket(), *self._tickets(self.vehicle_motion.state_ports)}
             self.DeclareVectorOutputPort("x_TU_prior", 6, self._calc_prior, prior_tickets)
+            self.DeclareStateOutputPort("P_TU_prior", self._P_index)
         else:
             self.DeclareStateOutputPort("x_TU_prior", self._x_index)
-        self.DeclareStateOutputPort("P_TU_prior", self._P_index)
+            self.DeclareStateOutputPort("P_TU_prior", self._P_index)
         self.DeclareVectorOutputPort("measurement_status", 1, self._calc_status, depends)
         self.DeclareVectorOutputPort("nis", 1, self._calc_nis, depends)
         self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
@@ -238,9 +174,33 @@ class RelativeStateEstimator(LeafSystem):
 
         ``filtered`` is this step's filtered estimate (``filtered.applied`` when an update was
         applied). Override it to advance state of your own; call ``super().advance`` (or
-        :meth:`write_prediction`) for groups 0 and 1.
+        :meth:`write_prediction`) for groups 0 and 1. With late ranges the state is the belief
+        at the window's anchor instead, moved one step on (:meth:`anchor_advance`).
         """
-        self.write_prediction(discrete_state, *self.predicted(context, filtered.x, filtered.P))
+        if self._window is None:
+            prediction = self.predicted(context, filtered.x, filtered.P)
+            self.write_prediction(discrete_state, *prediction)
+            return
+        outcome = self.anchor_advance(context)
+        if outcome is not None:
+            self.write_prediction(discrete_state, outcome.x, outcome.P)
+
+    def filtered_estimate(self, context: Context) -> FilteredEstimate | None:
+        """A variant's own filtered estimate of this tick, or None for the base's (the
+        measurement update of the prior). The particles with late ranges use it."""
+        return None
+
+    def needs_both_ranges(self, context: Context) -> bool:
+        """Whether this step's update needs both ranges at one instant (the paper's ``Y``):
+        then, with the pings at different times, the earlier range is carried to the later
+        ping time. The default: no."""
+        return False
+
+    def step_belief(self, context: Context, x: np.ndarray, P: np.ndarray, step) -> StepOutcome:
+        """The belief ``N(x, P)`` at a window step's tick (stored frame), stepped through the
+        step's arrived ranges at their ping times to the next tick
+        (:func:`~drake_uuv.estimators.timed_step.gaussian_step`)."""
+        return gaussian_step(self, context, x, P, step)
 
     # ------------------------------------------------------------------------- accessors
 
@@ -259,15 +219,48 @@ class RelativeStateEstimator(LeafSystem):
         return self._A, self._B, self._W
 
     @property
+    def baseline(self) -> np.ndarray:
+        """``b`` in the body frame [m]."""
+        return self._b
+
+    @property
+    def error_model(self) -> ErrorModel:
+        """What this estimator believes of its navigation and sonars."""
+        return self._error_model
+
+    @property
+    def window(self) -> PingWindow | None:
+        """The window of late ranges (None with the paper's timing)."""
+        return self._window
+
+    @property
     def initial_estimate(self) -> Estimate:
         """``Υ̂(0|−1)`` and ``P(0|−1)`` of the config."""
         return self._initial
 
     def prior(self, context: Context) -> Estimate:
-        """This step's prediction ``Υ̂(k|k−1)``, ``P(k|k−1)`` (relative state)."""
+        """This step's prediction ``Υ̂(k|k−1)``, ``P(k|k−1)`` (relative state): with late
+        ranges, the anchor stepped through the window with every range arrived by now."""
+        if self._window is not None:
+            x, P, _ = self._stepped.Eval(context)
+            return Estimate(self.vehicle_motion.prior(context, x), P)
         stored = context.get_discrete_state(self._x_index).get_value()
         P = context.get_discrete_state(self._P_index).get_value().reshape(6, 6)
         return Estimate(self.vehicle_motion.prior(context, stored), P)
+
+    def anchor(self, context: Context) -> Estimate:
+        """The stored belief (the prediction, or the window's anchor), stored frame."""
+        x = context.get_discrete_state(self._x_index).get_value()
+        P = context.get_discrete_state(self._P_index).get_value().reshape(6, 6)
+        return Estimate(x, P)
+
+    def anchor_advance(self, context: Context) -> StepOutcome | None:
+        """The window's anchor moved one step on: its oldest step, whose ranges have all
+        arrived (None until the window is full)."""
+        _, _, outcomes = self._stepped.Eval(context)
+        if self._window.tick(context) < self._window.schedule.window:
+            return None
+        return outcomes[0]
 
     def set_prior(self, context: Context, x: np.ndarray, P: np.ndarray) -> None:
         """Sets this step's prediction ``Υ̂(k|k−1)``, ``P(k|k−1)`` in ``context`` (e.g. to start
@@ -278,12 +271,26 @@ class RelativeStateEstimator(LeafSystem):
         context.SetDiscreteState(self._P_index, np.asarray(P, dtype=float).ravel())
 
     def ranges(self, context: Context) -> Ranges:
-        """This step's ranges, their means and the world baseline."""
+        """This tick's ranges, their means, the world baseline and the error model's noise.
+
+        With late ranges, only those of this tick's own pings (at the tick, no latency); the
+        others are the window's."""
         samples = self._samples_port.Eval(context).reshape(2, self._f)
         status = self._status_port.Eval(context)
+        if self._window is not None:
+            _, current = self._window.steps(context, samples, status)
+            samples = np.where(current[:, np.newaxis], samples, np.nan)
+            status = np.where(current, status, NO_ARRIVAL)
         valid = (np.asarray(status) == VALID) & np.all(np.isfinite(samples), axis=1)
-        q_s = self._attitude_port.Eval(context).reshape(3, 3) @ self._b
-        return Ranges(samples, samples.mean(axis=1), valid, status, q_s)
+        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
+        q_s = R_WB @ self._b
+        z = samples.mean(axis=1)
+        model = self._error_model
+        if not model.active:
+            return Ranges(samples, z, valid, status, q_s)
+        return Ranges(
+            samples, z, valid, status, q_s, model.attitude_covariance(R_WB), model.range_variance(z)
+        )
 
     def filtered(self, context: Context) -> FilteredEstimate:
         """This step's filtered estimate (the cache entry behind ``x_TU_hat`` and ``P_TU``)."""
@@ -312,6 +319,7 @@ class RelativeStateEstimator(LeafSystem):
         ports = [
             self._samples_port, self._status_port, self._attitude_port,
             *self.vehicle_motion.state_ports,
+            *(self._window.input_ports if self._window is not None else []),
         ]  # fmt: skip
         return self._tickets(ports) | {self.xd_ticket()}
 
@@ -335,29 +343,118 @@ class RelativeStateEstimator(LeafSystem):
         discrete_state.set_value(self._x_index, x0 - self.vehicle_motion.offset(context))
 
     def _calc_filtered(self, context: Context, value: AbstractValue) -> None:
+        estimate = self.filtered_estimate(context)
+        if estimate is None:
+            estimate = self._filtered_by_update(context)
+        estimate.floor = self._error_model.floor(estimate.x)
+        value.set_value(estimate)
+
+    def _filtered_by_update(self, context: Context) -> FilteredEstimate:
         prior = self.prior(context)
         ranges = self.ranges(context)
-        update = self.measurement_update(context, prior, ranges)
+        update = None
+        if not self.needs_both_ranges(context) or ranges.valid.all():
+            update = self.measurement_update(context, prior, ranges)
         if update is None:
-            invalid = ranges.status[ranges.status != VALID]
-            code = int(invalid[0]) if invalid.size else VALID
-            value.set_value(FilteredEstimate(prior.x.copy(), prior.P.copy(), code))
+            estimate = FilteredEstimate(prior.x.copy(), prior.P.copy(), self._no_update(ranges))
         elif update.nis > self.gate_threshold(update.dof):
-            value.set_value(FilteredEstimate(prior.x.copy(), prior.P.copy(), GATED, update.nis))
+            estimate = FilteredEstimate(prior.x.copy(), prior.P.copy(), GATED, update.nis)
         else:
-            value.set_value(FilteredEstimate(update.x, update.P, VALID, update.nis))
+            estimate = FilteredEstimate(update.x, update.P, VALID, update.nis)
+        if self._window is not None:
+            self._with_window_updates(context, estimate, update is not None)
+        return estimate
+
+    @staticmethod
+    def _no_update(ranges: Ranges) -> int:
+        invalid = ranges.status[ranges.status != VALID]
+        return int(invalid[0]) if invalid.size else VALID
+
+    def _with_window_updates(
+        self, context: Context, estimate: FilteredEstimate, updated_now: bool
+    ) -> None:
+        """Status and NIS of a tick with late ranges: of the ranges that arrived at it (the
+        window's instants that hold one, and this tick's own)."""
+        _, _, outcomes = self._stepped.Eval(context)
+        news = [u for o in outcomes for u in o.updates if u.new]
+        applied = [u.nis for u in news if u.status == VALID]
+        if estimate.status == VALID and updated_now:
+            applied.append(estimate.nis)
+        if applied:
+            estimate.status, estimate.nis = VALID, float(sum(applied))
+        elif news:
+            estimate.status, estimate.nis = GATED, float(sum(u.nis for u in news))
+        elif estimate.status == VALID and not updated_now:
+            estimate.status = self.arrival_status(context)
+
+    def arrival_status(self, context: Context) -> int:
+        """The status of a tick without an update: the first code of the sonars whose range
+        arrived unusable, or NO_ARRIVAL when none arrived."""
+        status = self._status_port.Eval(context)
+        arrived = status[status != NO_ARRIVAL]
+        invalid = arrived[arrived != VALID]
+        return int(invalid[0]) if invalid.size else NO_ARRIVAL
+
+    def window_outcomes(self, context: Context) -> list[StepOutcome]:
+        """The window steps' outcomes at this tick (empty with the paper's timing)."""
+        return [] if self._window is None else self._stepped.Eval(context)[2]
+
+    def _declare_window_cache(self, description: str, include_now: bool):
+        ports = [
+            self._attitude_port, *self.vehicle_motion.state_ports,
+            *(self._window.input_ports if include_now else []),
+            *([self._samples_port, self._status_port] if include_now else []),
+        ]  # fmt: skip
+        return self.DeclareCacheEntry(
+            description,
+            ValueProducer(
+                allocate=AbstractValue.Make((np.zeros(6), np.eye(6), [])).Clone,
+                calc=lambda context, value: value.set_value(
+                    self._step_window(context, include_now)
+                ),
+            ),
+            self._tickets(ports) | {self.xd_ticket()},
+        )
+
+    def _step_window(self, context: Context, include_now: bool) -> tuple:
+        """``(x, P, outcomes)``: the anchor stepped through the window (stored frame)."""
+        f = self._f
+        if include_now:
+            samples = self._samples_port.Eval(context).reshape(2, f)
+            status = self._status_port.Eval(context)
+        else:
+            samples, status = np.full((2, f), np.nan), np.full(2, float(NO_ARRIVAL))
+        steps, _ = self._window.steps(context, samples, status)
+        anchor = self.anchor(context)
+        x, P = anchor.x, anchor.P
+        outcomes = []
+        for step in steps:
+            outcome = self.step_belief(context, x, P, step)
+            x, P = outcome.x, outcome.P
+            outcomes.append(outcome)
+        return x, P, outcomes
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         self.advance(context, self._filtered.Eval(context), discrete_state)
+        if self._window is not None:
+            samples = self._samples_port.Eval(context).reshape(2, self._f)
+            self._window.record(context, discrete_state, samples, self._status_port.Eval(context))
 
     def _calc_prior(self, context: Context, output: BasicVector) -> None:
         output.set_value(self.prior(context).x)
+
+    def _calc_prior_before(self, context: Context, output: BasicVector) -> None:
+        x, _, _ = self._stepped_before.Eval(context)
+        output.set_value(self.vehicle_motion.prior(context, x))
+
+    def _calc_P_prior_before(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._stepped_before.Eval(context)[1].ravel())
 
     def _calc_x_hat(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._filtered.Eval(context).x)
 
     def _calc_P(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._filtered.Eval(context).P.ravel())
+        output.set_value(self._filtered.Eval(context).published_P.ravel())
 
     def _calc_status(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, self._filtered.Eval(context).status)

@@ -5,6 +5,7 @@ import numpy as np
 from drake_uuv.estimators.base import EstimatorSetting, RelativeStateEstimator
 from drake_uuv.estimators.kalman_filter import RangeDifferenceKalmanFilter
 from drake_uuv.estimators.range_filter import RangeFilter
+from drake_uuv.models.timing import PingSchedule
 from drake_uuv.primitives.variant_table import variant_system
 from drake_uuv.scenario import Ekf, Iekf, PaperKf, ParticleFilter, Scenario, Ukf
 
@@ -20,13 +21,19 @@ ESTIMATORS: dict[type, type[RelativeStateEstimator]] = {
 
 def estimator_setting(scenario: Scenario) -> EstimatorSetting:
     """What every estimator gets from the rest of ``scenario``: the time step, the target's
-    acceleration covariance, the sonars' noise, samples and baseline."""
+    acceleration covariance, the sonars' noise, samples, baseline, timing and sound-speed
+    error, and the navigation's error figures."""
     return EstimatorSetting(
         time_step=scenario.time_step,
         acceleration_covariance=np.asarray(scenario.target.acceleration_covariance),
         noise_variances=np.asarray(scenario.sonar.noise_variances),
         samples_per_step=scenario.sonar.samples_per_step,
         baseline_B=np.asarray(scenario.sonar.baseline),
+        ping_schedule=PingSchedule(
+            scenario.time_step, tuple(scenario.sonar.ping_offsets), scenario.sonar.latency
+        ),
+        navigation_errors=scenario.navigation.error_figures(),
+        sound_speed_error=scenario.sonar.sound_speed_error,
     )
 
 

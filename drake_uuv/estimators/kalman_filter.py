@@ -54,6 +54,12 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
     ) -> MeasurementUpdate | None:
         if not ranges.valid.all():
             return None  # Y needs both ranges.
-        Y, m, gamma = paper_measurement(ranges.samples, self._eta, self._noise_model)
+        eta = ranges.variances(self._eta)
+        Y, m, gamma = paper_measurement(ranges.samples, eta, self._noise_model)
+        if not ranges.exact:  # the error model's: the baseline's attitude error
+            gamma += ranges.difference_variance(prior.x)
         x, P, nis = range_difference_update(prior.x, prior.P, Y, m, gamma, ranges.q_s)
-        return MeasurementUpdate(x, P, nis, 1)
+        return MeasurementUpdate(x, P, nis, 1, gamma)
+
+    def needs_both_ranges(self, context: Context) -> bool:
+        return True

@@ -50,18 +50,23 @@ class LinearStart:
         P0 = np.asarray(initial_covariance, dtype=float)
         self._prior_share_index = host.DeclareDiscreteState(P0.ravel())
 
-    def measurement(self, z: np.ndarray) -> tuple[float, float, float]:
-        """``(Y, m, Γ)`` of the per-sonar means ``z``."""
-        m, gamma = range_difference_noise(self._noise_model, self._mean_variances, z * z)
-        return 0.5 * (z[0] * z[0] - z[1] * z[1]), float(m), float(gamma)
+    def measurement(self, ranges: Ranges, x: np.ndarray) -> tuple[float, float, float]:
+        """``(Y, m, Γ)`` of the per-sonar means, with the error model's noise at ``x``."""
+        z = ranges.z
+        variances = ranges.variances(self._mean_variances)
+        m, gamma = range_difference_noise(self._noise_model, variances, z * z)
+        gamma = float(gamma)
+        if not ranges.exact:
+            gamma += ranges.difference_variance(x)
+        return 0.5 * (z[0] * z[0] - z[1] * z[1]), float(m), gamma
 
     def update(self, prior: Estimate, ranges: Ranges) -> MeasurementUpdate | None:
         """The KF's update on ``Y``; None unless both sonars returned."""
         if not ranges.valid.all():
             return None  # Y needs both ranges; predict until both return.
-        Y, m, gamma = self.measurement(ranges.z)
+        Y, m, gamma = self.measurement(ranges, prior.x)
         x, P, nis = range_difference_update(prior.x, prior.P, Y, m, gamma, ranges.q_s)
-        return MeasurementUpdate(x, P, nis, 1)
+        return MeasurementUpdate(x, P, nis, 1, gamma)
 
     def prior_share(self, context: Context) -> np.ndarray:
         """``S`` of this step's prior (6×6)."""
@@ -75,15 +80,16 @@ class LinearStart:
         self,
         context: Context,
         filtered: FilteredEstimate,
-        ranges: Ranges,
+        updates: list[tuple[np.ndarray, float]],
         discrete_state: DiscreteValues,
     ) -> np.ndarray:
-        """Through this step's update (when applied) and the prediction: writes the next
-        ``S`` and returns the updated one, which the hand-over tests."""
+        """Through this tick's linear updates ``(q_s, Γ)`` and the prediction: writes the next
+        ``S`` and returns the updated one, which the hand-over tests. (With late ranges the
+        updates happened at their ping times within the window; ``S`` takes them at the tick,
+        with the tick's covariance: an approximation good enough for the hand-over's test.)"""
         S = self.prior_share(context)
-        if filtered.applied:
-            gamma = self.measurement(ranges.z)[2]
-            S = prior_share_update(S, filtered.P, ranges.q_s, gamma)
+        for q_s, gamma in updates:
+            S = prior_share_update(S, filtered.P, q_s, gamma)
         A, _, _ = self._host.model
         discrete_state.set_value(self._prior_share_index, prior_share_predict(S, A).ravel())
         return S

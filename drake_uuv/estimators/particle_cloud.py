@@ -13,15 +13,19 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, DiscreteValues, ValueProducer
 
 from drake_uuv.estimators.base import FilteredEstimate, RelativeStateEstimator
+from drake_uuv.estimators.timed_step import instant_ranges, instants
 from drake_uuv.models.measurement import VALID
 from drake_uuv.models.particle_filter import (
     STATE_SIZE,
     ParticleFilterParameters,
     initial_particles,
+    normalised,
     pf_predict,
     pf_update,
+    resample_regularised,
     weighted_moments,
 )
+from drake_uuv.models.timing import transition
 from drake_uuv.primitives.random_input import declare_random_input
 
 # The uniform draw of the random port becomes a generator seed with this many bits (a double
@@ -65,11 +69,17 @@ class ParticleCloud:
         self._seed_port = declare_random_input(
             host, "particle_seed", 1, RandomDistribution.kUniform
         )
+        self._window = host.window
+        if self._window is not None:  # each particle's target acceleration over each step
+            D = self._window.schedule.window
+            self._accelerations_index = host.DeclareDiscreteState(np.zeros(D * 3 * n))
         # The posterior log weights, shared by the filtered output and the periodic update.
         self._posterior = host.DeclareCacheEntry(
             "particle posterior",
             ValueProducer(
-                allocate=AbstractValue.Make((np.zeros(6), np.eye(6), math.nan, np.zeros(n))).Clone,
+                allocate=AbstractValue.Make(
+                    (np.zeros(6), np.eye(6), math.nan, np.zeros(n), None)
+                ).Clone,
                 calc=self._calc_posterior,
             ),
             host.depends_on_measurement(),
@@ -104,21 +114,139 @@ class ParticleCloud:
         return context.get_discrete_state(self._log_weights_index).get_value()
 
     def posterior(self, context: Context) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
-        """``(x, P, nis, log_weights)`` of this step's ranges (:func:`pf_update`)."""
-        return self._posterior.Eval(context)
+        """``(x, P, nis, log_weights)`` of this step's ranges (:func:`pf_update`; with late
+        ranges, of the window's and this tick's ranges)."""
+        return self._posterior.Eval(context)[:4]
 
     def _calc_posterior(self, context: Context, value: AbstractValue) -> None:
+        if self._window is not None:
+            value.set_value(self._window_posterior(context))
+            return
         ranges = self._host.ranges(context)
+        particles = self.particles(context)
+        R = self._R if ranges.exact else ranges.covariance(self._R, self._host.prior(context).x)
         value.set_value(
-            pf_update(
-                self.particles(context),
-                self.log_weights(context),
-                ranges.z,
-                ranges.q_s,
-                self._R,
-                ranges.sonars,
+            (
+                *pf_update(
+                    particles, self.log_weights(context), ranges.z, ranges.q_s, R, ranges.sonars
+                ),
+                None,
             )
         )
+
+    # ----------------------------------------------------------------------- late ranges
+
+    def accelerations(self, context: Context) -> np.ndarray:
+        """Each particle's target acceleration over each window step (D×3×N)."""
+        D = self._window.schedule.window
+        value = context.get_discrete_state(self._accelerations_index).get_value()
+        return value.reshape(D, 3, self._parameters.count)
+
+    def _window_steps(self, context: Context):
+        host = self._host
+        samples = host.GetInputPort("range_samples").Eval(context)
+        status = host.GetInputPort("sonar_status").Eval(context)
+        steps, _ = self._window.steps(context, samples.reshape(2, -1), status)
+        return steps
+
+    def _step(
+        self, particles: np.ndarray, log_weights: np.ndarray, u: np.ndarray, step
+    ) -> tuple[np.ndarray, np.ndarray, list[float]]:
+        """The stored-frame particles at a step's tick, reweighted by its arrived ranges at
+        their ping times along each particle's path, and moved to the next tick."""
+        host = self._host
+        t = host.time_step
+        a = np.zeros(3) if host.error_model.navigated_motion else step.acceleration
+        new_nis = []
+        for instant in instants(step, paired=False):
+            G, B = transition(instant.tau)
+            moved = G[:, :6] @ particles + G[:, 6:] @ u + (B @ a)[:, np.newaxis]
+            if host.error_model.navigated_motion:
+                moved = moved + step.vehicle(instant.tau, t)[:, np.newaxis]
+            q_s = step.attitude(instant.tau, t) @ host.baseline
+            ranges = instant_ranges(host, instant, q_s, step)
+            R = ranges.covariance(self._R, weighted_moments(moved, normalised(log_weights))[0])
+            _, _, nis, log_weights = pf_update(moved, log_weights, ranges.z, q_s, R, ranges.sonars)
+            if np.any(step.new[instant.sonars]):
+                new_nis.append(nis)
+        G, B = transition(t)
+        particles = G[:, :6] @ particles + G[:, 6:] @ u + (B @ a)[:, np.newaxis]
+        return particles, log_weights, new_nis
+
+    def _window_posterior(self, context: Context) -> tuple:
+        """``(x, P, nis, log_weights)`` at this tick from the anchor's cloud stepped through
+        the window, and the first step's result (the next anchor) appended."""
+        host = self._host
+        j = self._window.tick(context)
+        D = self._window.schedule.window
+        particles = context.get_discrete_state(self._particles_index).get_value()
+        particles = particles.reshape(STATE_SIZE, self._parameters.count)
+        log_weights = self.log_weights(context)
+        u = self.accelerations(context)
+        nis_total, first = [], None
+        for step in self._window_steps(context):
+            particles, log_weights, new_nis = self._step(
+                particles, log_weights, u[step.step - (j - D)], step
+            )
+            nis_total += new_nis
+            if first is None and j >= D:
+                first = (particles, log_weights)
+        relative = particles + host.vehicle_motion.offset(context)[:, np.newaxis]
+        ranges = host.ranges(context)  # this tick's own pings (no latency, at the tick)
+        nis = math.nan
+        if ranges.valid.any():
+            R = ranges.covariance(self._R, weighted_moments(relative, normalised(log_weights))[0])
+            _, _, nis, log_weights = pf_update(
+                relative, log_weights, ranges.z, ranges.q_s, R, ranges.sonars
+            )
+            nis_total.append(nis)
+        x, P = weighted_moments(relative, normalised(log_weights))
+        return x, P, float(sum(nis_total)) if nis_total else math.nan, log_weights, first
+
+    def advance_window(
+        self,
+        context: Context,
+        discrete_state: DiscreteValues,
+        draw: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
+        """The periodic update with late ranges: the anchor's cloud moved one step on (its
+        oldest step's ranges weighed, resampled and regularised, moved by each particle's
+        own acceleration) or drawn from ``N(draw)`` (stored frame, at the new anchor); a new
+        acceleration per particle for the window's newest step."""
+        host = self._host
+        u_seed = float(self._seed_port.Eval(context)[0])
+        rng = np.random.default_rng(int(u_seed * 2.0**_SEED_BITS))
+        count = self._parameters.count
+        D = self._window.schedule.window
+        _, _, W = host.model
+        L = np.linalg.cholesky(np.asarray(W, dtype=float))
+        u = self.accelerations(context)
+        if draw is not None:
+            particles = initial_particles(draw[0], draw[1], count, rng)
+            log_weights = np.full(count, -math.log(count))
+            u = np.stack([L @ rng.standard_normal((3, count)) for _ in range(D)])
+        else:
+            particles = context.get_discrete_state(self._particles_index).get_value()
+            particles = particles.reshape(STATE_SIZE, count)
+            log_weights = self.log_weights(context)
+            first = self._posterior.Eval(context)[4]
+            if first is not None:  # the oldest step's ranges have all arrived
+                steps = self._window_steps(context)
+                weighed = self._step(particles, log_weights, u[0], steps[0])[1]
+                particles, log_weights, chosen = resample_regularised(
+                    particles, weighed, rng, self._parameters
+                )
+                if chosen is not None:
+                    u = u[:, :, chosen]
+                a = np.zeros(3) if host.error_model.navigated_motion else steps[0].acceleration
+                G, B = transition(host.time_step)
+                particles = G[:, :6] @ particles + G[:, 6:] @ u[0] + (B @ a)[:, np.newaxis]
+            u = np.concatenate([u[1:], (L @ rng.standard_normal((3, count)))[np.newaxis]])
+        x, P = weighted_moments(particles, normalised(log_weights))
+        host.write_prediction(discrete_state, x, P)
+        discrete_state.set_value(self._particles_index, particles.ravel())
+        discrete_state.set_value(self._log_weights_index, log_weights)
+        discrete_state.set_value(self._accelerations_index, u.ravel())
 
     def advance(
         self,

@@ -21,6 +21,8 @@ their config dataclass names (``range_update()``, ``handover_policy()``,
 ``particle_parameters()``).
 """
 
+import math
+
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues
 
@@ -34,7 +36,9 @@ from drake_uuv.estimators.base import (
 )
 from drake_uuv.estimators.linear_start import LinearStart
 from drake_uuv.estimators.particle_cloud import ParticleCloud
+from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
 from drake_uuv.models.handover import HandoverPolicy, Phase, PhaseEvidence, Transition
+from drake_uuv.models.measurement import VALID
 from drake_uuv.scenario.estimators import RawRangeOptions
 
 
@@ -136,21 +140,56 @@ class RangeFilter(RelativeStateEstimator):
         if phase is Phase.PARTICLE:
             x, P, nis, _ = self._cloud.posterior(context)
         else:
+            R = ranges.covariance(self._R, prior.x)
             x, P, nis = self._gaussian_update(
-                prior.x, prior.P, ranges.z, ranges.q_s, self._R, sonars=sonars
+                prior.x, prior.P, ranges.z, ranges.q_s, R, sonars=sonars
             )
         return MeasurementUpdate(x, P, nis, int(sonars.size))
+
+    def needs_both_ranges(self, context: Context) -> bool:
+        return self.phase(context) is Phase.LINEAR
+
+    def filtered_estimate(self, context: Context) -> FilteredEstimate | None:
+        """With late ranges in the particle phase, the cloud's own: stepped through the
+        window's ranges at their ping times, then this tick's."""
+        if self.window is None or self.phase(context) is not Phase.PARTICLE:
+            return None
+        x, P, nis, _ = self._cloud.posterior(context)
+        status = VALID if math.isfinite(nis) else self.arrival_status(context)
+        return FilteredEstimate(x, P, status, nis)
+
+    def step_belief(self, context: Context, x: np.ndarray, P: np.ndarray, step) -> StepOutcome:
+        """In the particle phase the particles take the ranges: the Gaussian summary only
+        predicts (it serves the prior outputs)."""
+        particles = self.phase(context) is Phase.PARTICLE
+        return gaussian_step(self, context, x, P, step, with_ranges=not particles)
+
+    def _linear_updates(
+        self, context: Context, filtered: FilteredEstimate, ranges: Ranges
+    ) -> list[tuple[np.ndarray, float]]:
+        """This tick's applied linear updates as ``(q_s, Γ)``."""
+        if self.window is not None:
+            return [
+                (u.q_s, u.gamma) for o in self.window_outcomes(context) for u in o.updates
+                if u.new and u.status == VALID and u.gamma is not None
+            ]  # fmt: skip
+        if filtered.applied and ranges.valid.all():
+            return [(ranges.q_s, self._start.measurement(ranges, filtered.x)[2])]
+        return []
 
     def advance(
         self, context: Context, filtered: FilteredEstimate, discrete_state: DiscreteValues
     ) -> None:
-        super().advance(context, filtered, discrete_state)
         phase = self.phase(context)
+        timed = self.window is not None
+        if not (timed and phase is Phase.PARTICLE):
+            super().advance(context, filtered, discrete_state)
         done = self.linear_updates(context)
         ranges = self.ranges(context)
         transition = Transition(phase)
         if phase is Phase.LINEAR:
-            S = self._start.advance(context, filtered, ranges, discrete_state)
+            updates = self._linear_updates(context, filtered, ranges)
+            S = self._start.advance(context, filtered, updates, discrete_state)
             if filtered.applied:
                 done += 1
                 transition = self._policy.next_phase(
@@ -162,6 +201,9 @@ class RangeFilter(RelativeStateEstimator):
         discrete_state.set_value(self._phase_index, np.array([float(transition.phase), done]))
         if transition.phase is not Phase.PARTICLE:
             return
+        if timed:
+            self._advance_window_particles(context, filtered, discrete_state, phase, transition)
+            return
         if phase is Phase.PARTICLE:
             self._cloud.advance(context, filtered, discrete_state)
         elif transition.redraw_from_prior:
@@ -172,6 +214,25 @@ class RangeFilter(RelativeStateEstimator):
             self._cloud.advance(context, filtered, discrete_state, draw, weigh_draw=True)
         else:
             self._cloud.advance(context, filtered, discrete_state, (filtered.x, filtered.P))
+
+    def _advance_window_particles(
+        self,
+        context: Context,
+        filtered: FilteredEstimate,
+        discrete_state: DiscreteValues,
+        phase: Phase,
+        transition: Transition,
+    ) -> None:
+        """With late ranges: the cloud moves its anchor on, or is drawn at the new anchor from
+        the Gaussian filter's belief there (widened by NIS/2 for a filter that lost the
+        target)."""
+        if phase is Phase.PARTICLE:
+            self._cloud.advance_window(context, discrete_state)
+            return
+        outcome = self.anchor_advance(context)
+        anchor = self.anchor(context) if outcome is None else outcome
+        scale = filtered.nis / 2.0 if transition.redraw_from_prior else 1.0
+        self._cloud.advance_window(context, discrete_state, (anchor.x, anchor.P * scale))
 
     def _evidence(
         self, filtered: FilteredEstimate, done: int, S: np.ndarray, ranges: Ranges

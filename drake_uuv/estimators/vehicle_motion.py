@@ -34,7 +34,7 @@ class CommandedMotion:
     name = "commanded"
 
     def __init__(self, system: LeafSystem) -> None:
-        self._acceleration_port = system.DeclareVectorInputPort("u1_W", 3)
+        self.acceleration_port = system.DeclareVectorInputPort("u1_W", 3)
 
     @property
     def state_ports(self) -> list[InputPort]:
@@ -45,7 +45,7 @@ class CommandedMotion:
         return _ZERO6
 
     def acceleration(self, context: Context) -> np.ndarray:
-        return self._acceleration_port.Eval(context)
+        return self.acceleration_port.Eval(context)
 
     def prior(self, context: Context, stored: np.ndarray) -> np.ndarray:
         return stored

@@ -121,7 +121,8 @@ def reweight(
     variances: np.ndarray,
     predicted: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
-    """Bayes' rule on the particles for ``z = h(x) + v``, ``v ~ N(0, diag(variances))``.
+    """Bayes' rule on the particles for ``z = h(x) + v``, ``v ~ N(0, diag(variances))`` (or
+    ``N(0, variances)`` when ``variances`` is a covariance matrix).
 
     ``predicted`` (p×N) holds ``h`` of every particle (column). Returns the posterior's
     weighted mean and covariance, the NIS ``νᵀ S⁻¹ ν`` with ``ν = z − Σ wᵢ⁻ h(xᵢ)`` and ``S``
@@ -129,13 +130,18 @@ def reweight(
     the prediction is right), and the normalised posterior log weights.
     """
     z = np.asarray(z, dtype=float).reshape(-1)
-    variances = np.asarray(variances, dtype=float).reshape(-1)
-    z_hat, S = weighted_moments(predicted, _normalised(log_weights))
-    S = S + np.diag(variances)
+    noise = np.asarray(variances, dtype=float)
+    z_hat, S = weighted_moments(predicted, normalised(log_weights))
+    S = S + (noise if noise.ndim == 2 else np.diag(noise.reshape(-1)))
     nu = z - z_hat
     nis = float(nu @ np.linalg.solve(S, nu))
     residual = predicted - z[:, None]
-    log_posterior = log_weights - (0.5 / variances) @ (residual * residual)
+    if noise.ndim == 2:  # a full covariance: −½ rᵀ R⁻¹ r through its Cholesky factor
+        whitened = np.linalg.solve(np.linalg.cholesky(noise), residual)
+        log_posterior = log_weights - 0.5 * np.einsum("ij,ij->j", whitened, whitened)
+    else:
+        variances = noise.reshape(-1)
+        log_posterior = log_weights - (0.5 / variances) @ (residual * residual)
     log_posterior -= _log_sum_exp(log_posterior)
     x, P = weighted_moments(particles, np.exp(log_posterior))
     return x, P, nis, log_posterior
@@ -153,7 +159,8 @@ def pf_update(
 
     ``particles`` (6×N, one column per particle) and ``log_weights`` (N, normalised or not)
     are the prediction ``p(x(k) | z(0..k−1))``; ``z`` the per-sonar sample means,
-    ``R = diag(η/f)``, ``sonars`` the ranges used (the other entry of ``z`` may then be NaN).
+    ``R`` their covariance (``diag(η/f)``, plus an error model's), ``sonars`` the ranges used
+    (the other entry of ``z`` may then be NaN).
     See :func:`reweight` for the returned values (NIS χ² with ``len(sonars)`` degrees of
     freedom when consistent).
     """
@@ -161,8 +168,10 @@ def pf_update(
     if rows.size == 0 or not set(rows.tolist()) <= {0, 1}:
         raise ValueError(f"sonars: must be a non-empty subset of (0, 1), got {sonars!r}")
     z = np.asarray(z, dtype=float).reshape(2)[rows]
-    variances = np.diag(np.asarray(R, dtype=float))[rows]
-    return reweight(particles, log_weights, z, variances, particle_ranges(particles, q_s)[rows])
+    R = np.asarray(R, dtype=float)[np.ix_(rows, rows)]
+    # Independent ranges (the sonars' own noise): the diagonal's cheaper likelihood.
+    noise = np.diag(R) if np.count_nonzero(R - np.diag(np.diag(R))) == 0 else R
+    return reweight(particles, log_weights, z, noise, particle_ranges(particles, q_s)[rows])
 
 
 def systematic_resample(weights: np.ndarray, u: float) -> np.ndarray:
@@ -210,26 +219,43 @@ def pf_predict(
     acceleration covariance. Returns the predicted particles (6×N), their log weights and
     whether the step resampled.
     """
-    weights = np.exp(log_weights)
     n = particles.shape[1]
-    resampled = effective_sample_size(weights) < parameters.resample_threshold * n
-    if resampled:
-        h = parameters.bandwidth
-        if h > 0.0:
-            mean, cov = weighted_moments(particles, weights)
-        particles = particles[:, systematic_resample(weights, float(rng.random()))]
-        log_weights = np.full(n, -math.log(n))
-        if h > 0.0:
-            particles = shrinkage_kernel(particles, mean, cov, h, rng)
+    particles, log_weights, chosen = resample_regularised(particles, log_weights, rng, parameters)
     # x⁺ = A x + B (a_W − ū): the known acceleration once, the target's per particle.
     noise = np.linalg.cholesky(np.asarray(W, dtype=float)) @ rng.standard_normal((3, n))
     moved = A @ particles
     moved += (B @ np.asarray(a_W, dtype=float).reshape(3))[:, None]
     moved -= B @ noise
-    return moved, log_weights, bool(resampled)
+    return moved, log_weights, chosen is not None
 
 
-def _normalised(log_weights: np.ndarray) -> np.ndarray:
+def resample_regularised(
+    particles: np.ndarray,
+    log_weights: np.ndarray,
+    rng: np.random.Generator,
+    parameters: ParticleFilterParameters,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """When the effective sample size is below the threshold: systematic resampling, then the
+    shrinkage kernel (equal weights after). Returns the particles, their log weights and the
+    chosen ancestors' indices (None when it did not resample), so a particle's own data (its
+    path's accelerations) can follow it."""
+    weights = np.exp(log_weights)
+    n = particles.shape[1]
+    if not effective_sample_size(weights) < parameters.resample_threshold * n:
+        return particles, log_weights, None
+    h = parameters.bandwidth
+    if h > 0.0:
+        mean, cov = weighted_moments(particles, weights)
+    chosen = systematic_resample(weights, float(rng.random()))
+    particles = particles[:, chosen]
+    log_weights = np.full(n, -math.log(n))
+    if h > 0.0:
+        particles = shrinkage_kernel(particles, mean, cov, h, rng)
+    return particles, log_weights, chosen
+
+
+def normalised(log_weights: np.ndarray) -> np.ndarray:
+    """The weights of log weights, normalised to sum 1."""
     w = np.exp(log_weights - log_weights.max())
     return w / w.sum()
 

@@ -1,0 +1,170 @@
+"""What an estimator exchanges with the rest of the loop and with its variants: its setting,
+the ranges of an instant, estimates and updates."""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drake_uuv.models.measurement import VALID
+from drake_uuv.models.navigation_noise import (
+    difference_attitude_variance,
+    range_attitude_covariance,
+)
+from drake_uuv.models.timing import PingSchedule
+from drake_uuv.scenario.navigation import NavigationErrors
+
+
+@dataclass(frozen=True)
+class EstimatorSetting:
+    """What every estimator gets from the rest of the scenario (the builder passes it).
+
+    - ``time_step`` t [s] of the loop.
+    - ``acceleration_covariance``: W (3×3) of the target's random walk [m²/s⁴]
+      (``target.acceleration_covariance``).
+    - ``noise_variances``: η1, η2 of the two sonars' range noise [m²]
+      (``sonar.noise_variances``).
+    - ``samples_per_step``: f, range samples per sonar and step (``sonar.samples_per_step``).
+    - ``baseline_B``: b = ᵇp_s1 − ᵇp_s2 in the body frame [m] (``sonar.baseline``): the world
+      baseline ``q_s = R_WB b`` of a step follows from the attitude.
+    - ``ping_schedule``: when each sonar pings and when its range arrives
+      (``sonar.ping_offsets``, ``sonar.latency``); None: the paper's timing.
+    - ``navigation_errors``: the navigation's error figures (``navigation.error_figures()``).
+    - ``sound_speed_error``: ε, the ranges' scale error (``sonar.sound_speed_error``), taken as
+      the size of an unknown scale.
+    """
+
+    time_step: float
+    acceleration_covariance: np.ndarray
+    noise_variances: np.ndarray
+    samples_per_step: int = 1
+    baseline_B: np.ndarray = field(default_factory=lambda: np.array([-1.0, 1.0, 0.0]))
+    ping_schedule: PingSchedule | None = None
+    navigation_errors: NavigationErrors = field(default_factory=NavigationErrors)
+    sound_speed_error: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.time_step) and self.time_step > 0.0):
+            raise ValueError(f"time_step: must be > 0, got {self.time_step!r}")
+        W = np.asarray(self.acceleration_covariance, dtype=float)
+        if W.shape != (3, 3) or not np.all(np.isfinite(W)):
+            raise ValueError(f"acceleration_covariance: must be a finite 3×3 matrix, got {W!r}")
+        eta = np.asarray(self.noise_variances, dtype=float).reshape(-1)
+        if eta.shape != (2,) or not np.all(np.isfinite(eta)) or np.any(eta <= 0.0):
+            raise ValueError(f"noise_variances: must be two numbers > 0, got {eta.tolist()!r}")
+        f = self.samples_per_step
+        if isinstance(f, bool) or int(f) != f or f < 1:
+            raise ValueError(f"samples_per_step: must be an integer ≥ 1, got {f!r}")
+        b = np.asarray(self.baseline_B, dtype=float)
+        if b.shape != (3,) or not np.all(np.isfinite(b)):
+            raise ValueError(f"baseline_B: must be 3 finite numbers, got {self.baseline_B!r}")
+        object.__setattr__(self, "acceleration_covariance", W)
+        object.__setattr__(self, "noise_variances", eta)
+        object.__setattr__(self, "samples_per_step", int(f))
+        object.__setattr__(self, "baseline_B", b)
+        if self.ping_schedule is None:
+            object.__setattr__(self, "ping_schedule", PingSchedule(self.time_step))
+        elif self.ping_schedule.time_step != self.time_step:
+            raise ValueError(
+                f"ping_schedule: its time step must be {self.time_step!r}, got "
+                f"{self.ping_schedule.time_step!r}"
+            )
+
+
+@dataclass
+class Estimate:
+    """A relative state estimate ``[q, ϑ]`` and its covariance."""
+
+    x: np.ndarray
+    P: np.ndarray
+
+
+@dataclass(frozen=True)
+class Ranges:
+    """One step's ranges, as an estimator reads them.
+
+    ``samples`` (2×f, sonar 1's row first; NaN without a return), ``z`` the per-sonar sample
+    means, ``valid`` which sonars returned a usable range (status VALID and finite samples),
+    ``status`` the sonar's per-sonar codes, ``q_s`` the world baseline ``R_WB b`` [m] at the
+    ranges' instant.
+
+    What the estimator's error model adds to the ranges' noise (None: nothing):
+    ``attitude_covariance`` Σ_θ (3×3), the navigated attitude's error as a world rotation
+    vector, which moves the baseline; ``extra_variance`` (2), more variance per range (the
+    sound-speed scale, a range carried from its own ping time to another).
+    """
+
+    samples: np.ndarray
+    z: np.ndarray
+    valid: np.ndarray
+    status: np.ndarray
+    q_s: np.ndarray
+    attitude_covariance: np.ndarray | None = None
+    extra_variance: np.ndarray | None = None
+
+    @property
+    def sonars(self) -> np.ndarray:
+        """The indices of the sonars that returned."""
+        return np.flatnonzero(self.valid)
+
+    @property
+    def exact(self) -> bool:
+        """Whether the ranges' noise is the sonars' alone."""
+        return self.attitude_covariance is None and self.extra_variance is None
+
+    def covariance(self, R: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """The two ranges' noise covariance: the sonars' ``R`` plus the error model's,
+        the attitude's part at the estimate ``x``."""
+        if self.exact:
+            return R
+        R = R.copy()
+        if self.extra_variance is not None:
+            R[np.diag_indices(2)] += self.extra_variance
+        if self.attitude_covariance is not None:
+            R += range_attitude_covariance(x[:3], self.q_s, self.attitude_covariance)
+        return R
+
+    def variances(self, eta: np.ndarray) -> np.ndarray:
+        """The per-sonar variances ``η`` plus the extra ones."""
+        return eta if self.extra_variance is None else eta + self.extra_variance
+
+    def difference_variance(self, x: np.ndarray) -> float:
+        """The error model's extra variance of the paper's ``Y = q_sᵀ q`` at ``x``."""
+        if self.attitude_covariance is None:
+            return 0.0
+        return difference_attitude_variance(x[:3], self.q_s, self.attitude_covariance)
+
+
+@dataclass
+class MeasurementUpdate:
+    """A variant's proposed update: the posterior and its innovation statistic."""
+
+    x: np.ndarray
+    P: np.ndarray
+    nis: float  # normalised innovation squared νᵀ S⁻¹ ν
+    dof: int  # dimension of the innovation
+    # The noise variance Γ of a linear update on the paper's Y (None for other updates): a
+    # linear start tracks its prior's share of the covariance with it.
+    gamma: float | None = None
+
+
+@dataclass
+class FilteredEstimate:
+    """``Υ̂(k|k)``, ``P(k|k)``, the step's measurement status and NIS (NaN: no update)."""
+
+    x: np.ndarray
+    P: np.ndarray
+    status: int = VALID
+    nis: float = math.nan
+    # What the published covariance adds to P (the error model's floors); None: nothing.
+    floor: np.ndarray | None = None
+
+    @property
+    def published_P(self) -> np.ndarray:
+        """``P`` plus the floors: the covariance of ``x``'s error against the truth."""
+        return self.P if self.floor is None else self.P + self.floor
+
+    @property
+    def applied(self) -> bool:
+        """Whether a measurement update was applied (VALID with a finite NIS)."""
+        return self.status == VALID and math.isfinite(self.nis)

@@ -1,0 +1,110 @@
+"""What an estimator believes of its navigation and its sonars: ``estimator.error_model``.
+
+``modelled`` (the default) takes the scenario's figures (:class:`~drake_uuv.estimators.base.
+EstimatorSetting`: the navigation's error figures, the sonars' ping schedule and sound-speed
+error) into the filter:
+
+- **attitude noise → measurement noise**: the baseline a filter places the sonars on,
+  ``R_WB_nav b``, is off by the AHRS noise: each range gets the extra covariance
+  ``J Σ_θ Jᵀ``, the paper's ``Y`` the variance ``(q_s × q)ᵀ Σ_θ (q_s × q)``
+  (:mod:`drake_uuv.models.navigation_noise`);
+- **attitude noise → process noise** with ``vehicle_motion: commanded``: the commanded world
+  acceleration ``R_nav u1`` the filter predicts with is off by ``a × θ``: ``[a]× Σ_θ [a]×ᵀ``
+  added to W for the step;
+- **DVL noise → process noise** with ``vehicle_motion: navigation``: the dead-reckoned
+  position the filter subtracts walks by about ``t σ_v`` a step (white noise and the bias,
+  which turns with the body): ``t² (σ_v² + σ_b²)`` per axis on the position, and the
+  navigated velocity's own error ``σ_v² + σ_b²`` on the published velocity covariance;
+- **the biases** are not estimated as state. The heading bias rotates the whole relative
+  frame about z, which ranges cannot see: its error ``b e_z × x`` is a floor, added to the
+  published covariance (``σ_ψ² (e_z × x)(e_z × x)ᵀ``). The DVL's bias is in the body frame and
+  turns with the vehicle, so it does not accumulate into a drift the target's velocity state
+  could not follow: it is noise. The sound-speed scale ``(1 + ε)`` is observable only through
+  the baseline's share of a range (``|b|²/(4|q|²)``, 6 % at the paper's 2.8 m): its error
+  ``ε |q|`` along the line of sight is a floor on the published covariance, and ``(ε z)²`` is
+  added to each range's noise;
+- **timing**: each range at its own ping time, late ranges when they arrive
+  (:mod:`drake_uuv.estimators.ping_window`).
+
+``ideal`` believes navigation and timing perfect: none of the above, and the ranges that
+arrive at a tick are taken as measured then, together. It shows what ignoring them costs.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from drake_uuv.models.navigation_noise import (
+    commanded_acceleration_noise,
+    heading_bias_floor,
+    rotation_vector_covariance,
+    sound_speed_floor,
+)
+from drake_uuv.models.timing import PingSchedule
+from drake_uuv.scenario.navigation import NavigationErrors
+
+
+@dataclass(frozen=True)
+class ErrorModel:
+    """The errors a filter models (all zero for ``error_model: ideal``)."""
+
+    errors: NavigationErrors
+    schedule: PingSchedule
+    sound_speed_error: float = 0.0
+    navigated_motion: bool = False  # vehicle_motion: navigation
+
+    @property
+    def active(self) -> bool:
+        """Whether any navigation or sound-speed error is modelled (timing aside)."""
+        return self.errors.any or self.sound_speed_error != 0.0
+
+    @property
+    def attitude_noise(self) -> bool:
+        return bool(np.any(self.errors.attitude_noise > 0.0))
+
+    def attitude_covariance(self, R_WB_nav: np.ndarray) -> np.ndarray | None:
+        """``Σ_θ`` of the AHRS noise at a navigated attitude (None without attitude noise)."""
+        if not self.attitude_noise:
+            return None
+        return rotation_vector_covariance(R_WB_nav, self.errors.attitude_noise)
+
+    def range_variance(self, z: np.ndarray) -> np.ndarray | None:
+        """Extra variance of each range from the sound speed, ``(ε z)²`` (None without)."""
+        if self.sound_speed_error == 0.0:
+            return None
+        return (self.sound_speed_error * np.nan_to_num(z)) ** 2
+
+    def acceleration_covariance(self, a_W: np.ndarray, R_WB_nav: np.ndarray) -> np.ndarray | None:
+        """What the attitude noise adds to W for a step commanded with ``a_W`` (commanded
+        motion only; None otherwise)."""
+        if self.navigated_motion or not self.attitude_noise:
+            return None
+        sigma_theta = rotation_vector_covariance(R_WB_nav, self.errors.attitude_noise)
+        return commanded_acceleration_noise(a_W, sigma_theta)
+
+    @property
+    def velocity_variance(self) -> float:
+        """``σ_v² + σ_b²`` of the navigated velocity per axis (navigated motion only)."""
+        if not self.navigated_motion:
+            return 0.0
+        return self.errors.velocity_noise**2 + self.errors.velocity_bias**2
+
+    def floor(self, x: np.ndarray) -> np.ndarray | None:
+        """What the published covariance adds to the filter's own at the estimate ``x``: the
+        heading bias's and the sound-speed scale's floors, and the navigated velocity's error
+        (None when there is none)."""
+        if not self.active:
+            return None
+        floor = np.zeros((6, 6))
+        x = np.asarray(x, dtype=float)[np.newaxis]
+        if self.errors.heading_bias > 0.0:
+            floor += heading_bias_floor(x[:, :3], x[:, 3:], self.errors.heading_bias)[0]
+        if self.sound_speed_error != 0.0:
+            floor += sound_speed_floor(x[:, :3], self.sound_speed_error)[0]
+        floor[3:, 3:] += self.velocity_variance * np.eye(3)
+        return floor if floor.any() else None
+
+
+def ideal_model(time_step: float) -> ErrorModel:
+    """The error model of ``error_model: ideal``: nothing, the paper's timing."""
+    return ErrorModel(NavigationErrors(), PingSchedule(time_step))

@@ -1,0 +1,141 @@
+"""One step of a Gaussian estimator with its ranges at their own ping times.
+
+The step's augmented state ``z = [x_k, ū_k]`` (:mod:`drake_uuv.models.timing`) takes each
+instant's ranges through the estimator's own update hook on ``y = x(τ)`` (so the paper's KF,
+the EKF, the IEKF and the UKF each keep their update), conditioned back onto ``z``; the step
+ends at ``x_{k+1} = G(t) z + B(t) a_k``. An estimator that needs both ranges at one instant
+(the paper's KF, a linear start) gets the earlier range carried to the later ping time.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drake_uuv.estimators.contract import Estimate, MeasurementUpdate, Ranges
+from drake_uuv.estimators.ping_window import StepRanges
+from drake_uuv.models.measurement import GATED, NO_ARRIVAL, VALID
+from drake_uuv.models.timing import augment, carried_range, transition, update_through
+
+
+@dataclass
+class InstantOutcome:
+    """An instant's update: its status (VALID or GATED), NIS and innovation dimension, and
+    whether it holds a range that arrived at this tick."""
+
+    status: int
+    nis: float
+    dof: int
+    new: bool
+    q_s: np.ndarray | None = None
+    gamma: float | None = None
+
+
+@dataclass
+class StepOutcome:
+    """The belief at the step's end (stored frame) and its instants' updates."""
+
+    x: np.ndarray
+    P: np.ndarray
+    updates: list[InstantOutcome] = field(default_factory=list)
+
+
+@dataclass
+class _Instant:
+    tau: float
+    sonars: list[int]
+    samples: np.ndarray  # 2×f, NaN outside ``sonars``
+    extra: np.ndarray  # extra variance per sonar
+
+
+def instants(step: StepRanges, paired: bool) -> list[_Instant]:
+    """The step's usable ranges grouped by ping time, earliest first (``paired``: one instant
+    at the later time holding both, when both returned; none with one)."""
+    valid = [i for i in range(2) if step.valid(i)]
+    if paired and len(valid) < 2:
+        return []
+    groups: dict[float, list[int]] = {}
+    for i in valid:
+        groups.setdefault(float(step.tau[i]), []).append(i)
+    if paired and len(groups) > 1:
+        return [_Instant(max(groups), valid, step.samples.copy(), np.zeros(2))]
+    out = []
+    for tau in sorted(groups):
+        samples = np.full_like(step.samples, np.nan)
+        samples[groups[tau]] = step.samples[groups[tau]]
+        out.append(_Instant(tau, groups[tau], samples, np.zeros(2)))
+    return out
+
+
+def gaussian_step(
+    host, context, x: np.ndarray, P: np.ndarray, step: StepRanges, with_ranges: bool = True
+) -> StepOutcome:
+    """Steps the Gaussian belief ``N(x, P)`` at ``t_k`` (stored frame) through ``step`` (its
+    ranges left out without ``with_ranges``: the prediction alone)."""
+    t = host.time_step
+    model = host.error_model
+    _, _, W = host.model
+    navigated = model.navigated_motion
+    a = np.zeros(3) if navigated else step.acceleration
+    extra_W = model.acceleration_covariance(a, step.R_start)
+    P = P.copy()
+    if model.velocity_variance > 0.0:  # the dead-reckoned position's walk over the step
+        P[:3, :3] += (t * t * model.velocity_variance) * np.eye(3)
+    z, P_z = augment(x, P, W if extra_W is None else W + extra_W)
+
+    def at(tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(G, c, q_s)``: the relative state at τ is ``G z + c``."""
+        G, B = transition(tau)
+        c = B @ a
+        if navigated:
+            c = c + step.vehicle(tau, t)
+        return G, c, step.attitude(tau, t) @ host.baseline
+
+    outcome = StepOutcome(x, P)
+    paired = host.needs_both_ranges(context)
+    for instant in instants(step, paired) if with_ranges else []:
+        G, c, q_s = at(instant.tau)
+        if paired and len(instant.sonars) == 2 and step.tau[0] != step.tau[1]:
+            early = int(np.argmin(step.tau))
+            shift, variance = carried_range(z, P_z, early, at(float(step.tau[early])), (G, c, q_s))
+            instant.samples[early] += shift
+            instant.extra[early] += variance
+        y = G @ z + c
+        P_y = G @ P_z @ G.T
+        ranges = instant_ranges(host, instant, q_s, step)
+        update: MeasurementUpdate | None = host.measurement_update(
+            context, Estimate(y, P_y), ranges
+        )
+        if update is None:
+            continue
+        new = bool(np.any(step.new[instant.sonars]))
+        if update.nis > host.gate_threshold(update.dof):
+            outcome.updates.append(InstantOutcome(GATED, update.nis, update.dof, new))
+            continue
+        z, P_z = update_through(z, P_z, G, y, update.x, update.P)
+        outcome.updates.append(
+            InstantOutcome(VALID, update.nis, update.dof, new, q_s, update.gamma)
+        )
+    G, B = transition(t)
+    outcome.x = G @ z + B @ a
+    outcome.P = G @ P_z @ G.T
+    outcome.P = 0.5 * (outcome.P + outcome.P.T)
+    return outcome
+
+
+def instant_ranges(host, instant: _Instant, q_s: np.ndarray, step: StepRanges) -> Ranges:
+    """The ranges of one instant of a step, with the error model's noise."""
+    samples = instant.samples
+    valid = np.zeros(2, dtype=bool)
+    valid[instant.sonars] = True
+    status = np.where(valid, VALID, NO_ARRIVAL).astype(float)
+    z = samples.mean(axis=1)
+    model = host.error_model
+    extra = instant.extra.copy()
+    sound = model.range_variance(z)
+    if sound is not None:
+        extra += sound
+    R_nav = step.attitude(instant.tau, host.time_step)
+    return Ranges(
+        samples, z, valid, status, q_s, model.attitude_covariance(R_nav),
+        extra if extra.any() else None,
+    )  # fmt: skip
