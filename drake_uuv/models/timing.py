@@ -15,6 +15,8 @@ step's augmented state ``z = [x_k, ū_k]`` (prior ``N([x̂_k, 0], blkdiag(P_k, W
 ``G(τ) = [Φ(τ), −B(τ)]``. A range at τ informs ``z`` through ``y = x(τ)``: any Gaussian update
 of ``y`` (EKF, UKF, the paper's KF, …) carries over to ``z`` by conditioning,
 ``m_z ← m_z + K (m_y⁺ − m_y)``, ``P_z ← P_z − K (P_y − P_y⁺) Kᵀ``, ``K = P_z Gᵀ P_y⁻¹``
+(computed as ``(I − K G) P_z (I − K G)ᵀ + K P_y⁺ Kᵀ``, the same matrix, which stays positive
+semi-definite under rounding)
 (:func:`update_through`), exact for a linear measurement and the same as the update of z
 itself for a linearised one. The step ends with ``x_{k+1} = G(t) z + B(t) a_k``. Treating
 the sub-intervals as independent (``Q(τ₂ − τ₁)`` between two pings of one step) would
@@ -122,7 +124,10 @@ def update_through(
     P_y = G @ P_zy
     K = np.linalg.solve(P_y, P_zy.T).T  # P_z Gᵀ P_y⁻¹ (P_y symmetric)
     z_post = z + K @ (y_posterior - y_prior)
-    P_post = P_z - K @ (P_y - P_y_posterior) @ K.T
+    # P_z − K P_y Kᵀ (z's covariance given y) as (I − K G) P_z (I − K G)ᵀ: the same matrix,
+    # positive semi-definite under rounding; then K P_y⁺ Kᵀ of the updated y.
+    I_KG = np.eye(len(z)) - K @ G
+    P_post = I_KG @ P_z @ I_KG.T + K @ P_y_posterior @ K.T
     return z_post, 0.5 * (P_post + P_post.T)
 
 
