@@ -1,4 +1,5 @@
-"""The paper's figures: written as PNG and SVG, with content, from one short run."""
+"""The paper's figures: written as PNG and SVG, with content, from one short run (the file
+names are the registry's, drake_uuv/analysis/registry.py)."""
 
 import xml.etree.ElementTree as ElementTree
 from pathlib import Path
@@ -7,16 +8,14 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from drake_uuv.analysis.figures import (
-    excitation_eigenvalues,
-    sensor_positions,
-    write_run_figures,
-)
+from drake_uuv.analysis.figures import excitation_eigenvalues, sensor_positions
+from drake_uuv.analysis.registry import RUN_FIGURES, write_run_figures
 from drake_uuv.cli import main
 from drake_uuv.scenario import load_scenario
 from drake_uuv.simulation import simulate
 
-STEMS = ("errors", "trajectory", "excitation", "nees")
+# The figures of a run of the paper's kinematic vehicle, relative to the run's folder.
+STEMS = tuple(f"{e.folder}/{e.name}".lstrip("/") for e in RUN_FIGURES if not e.needs)
 
 
 @pytest.fixture(scope="module")
@@ -45,19 +44,19 @@ def _colour_fraction(path: Path, channel: int) -> float:
 @pytest.mark.slow
 def test_run_figures_are_written_as_png_and_svg_with_content(run, tmp_path):
     paths = write_run_figures(run.log, run.scenario, tmp_path)
-    assert sorted(p.name for p in paths) == sorted(
-        f"{s}.{e}" for s in STEMS for e in ("png", "svg")
-    )
-    for stem in STEMS:
-        png = tmp_path / f"{stem}.png"
-        assert _ink_fraction(png) > 0.02, f"{png.name} is blank"
-        svg = ElementTree.parse(tmp_path / f"{stem}.svg").getroot()
-        drawn = [e for e in svg.iter() if e.tag.endswith(("path", "use"))]
-        assert len(drawn) > 50, f"{stem}.svg draws almost nothing"
-    errors_png = tmp_path / "errors.png"
-    assert _colour_fraction(errors_png, 0) > 1e-3, "no red estimation-error line"
-    assert _colour_fraction(errors_png, 2) > 1e-3, "no blue tracking-error line"
-    assert _colour_fraction(tmp_path / "trajectory.png", 0) > 1e-4, "no red target trajectory"
+    assert {p.relative_to(tmp_path).with_suffix("").as_posix() for p in paths} == set(STEMS)
+    for path in paths:
+        if path.suffix == ".png":
+            assert _ink_fraction(path) > 0.02, f"{path.name} is blank"
+        else:
+            svg = ElementTree.parse(path).getroot()
+            drawn = [e for e in svg.iter() if e.tag.endswith(("path", "use"))]
+            assert len(drawn) > 50, f"{path.name} draws almost nothing"
+    for errors_png in (tmp_path / "error_summary.png", tmp_path / "figures/errors_vs_pcrlb.png"):
+        assert _colour_fraction(errors_png, 0) > 1e-3, "no red estimation-error line"
+        assert _colour_fraction(errors_png, 2) > 1e-3, "no blue tracking-error line"
+    trajectory = tmp_path / "figures/trajectory_3d.png"
+    assert _colour_fraction(trajectory, 0) > 1e-4, "no red target trajectory"
 
 
 @pytest.mark.slow
@@ -98,9 +97,10 @@ def test_drake_uuv_run_writes_the_figures(tmp_path):
         ["run", "--out", str(tmp_path), "--set", "steps=30", "--set", "steady_state_start=5"]
     )
     assert status == 0
-    for stem in STEMS:
-        for suffix in ("png", "svg"):
-            assert (tmp_path / "figures" / f"{stem}.{suffix}").stat().st_size > 0
+    for entry in RUN_FIGURES:
+        for suffix in entry.formats:
+            path = tmp_path / entry.folder / f"{entry.name}.{suffix}"
+            assert path.exists() == (not entry.needs), path
 
 
 def test_pe_window_is_validated():
