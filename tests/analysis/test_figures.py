@@ -5,6 +5,7 @@ import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
 import matplotlib.image
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
@@ -108,3 +109,20 @@ def test_pe_window_is_validated():
 
     with pytest.raises(ScenarioError, match=r"analysis\.pe_window: must be in \[1, 1e6\], got 0"):
         load_scenario("paper", ["analysis.pe_window=0"])
+
+
+def test_the_vehicle_attitude_title_reports_the_metrics_window() -> None:
+    """The mean and peak attitude error in the title are metrics.json's, over k ≥
+    steady_state_start (not over the whole run, whose start is far worse)."""
+    from drake_uuv.analysis.vehicle_figures import attitude_errors, attitude_tracking_figure
+
+    scenario = load_scenario("paper", ["plant=!HoveringAuv", "steps=30", "steady_state_start=15"])
+    result = simulate(scenario)
+    figure = attitude_tracking_figure(result.log, scenario)
+    title = " ".join(figure.get_suptitle().split())  # unwrapped
+    mean, peak = result.metrics["attitude_error_mean"], result.metrics["attitude_error_peak"]
+    assert "over k ≥ 15 (the window of metrics.json" in title
+    assert f"mean {mean:.3g} rad, peak {peak:.3g} rad" in title
+    whole_run = attitude_errors(result.log)[1:].mean()
+    assert f"{whole_run:.3g}" != f"{mean:.3g}"  # the window matters in this run
+    plt.close(figure)
