@@ -127,7 +127,7 @@ def attitude_tracking_figure(log: dict[str, np.ndarray], scenario: Scenario) -> 
     )
     suptitle(
         figure,
-        f"attitude error over k ≥ {start} (the window of metrics.json, right of the dashed "
+        f"attitude error over k ≥ {start}, metrics.json's window (right of the dashed "
         f"line): {summary}",
         "roll, pitch, yaw wrapped to ±π, each achieved angle within π of its command",
     )

@@ -121,7 +121,7 @@ def test_the_vehicle_attitude_title_reports_the_metrics_window() -> None:
     figure = attitude_tracking_figure(result.log, scenario)
     title = " ".join(figure.get_suptitle().split())  # unwrapped
     mean, peak = result.metrics["attitude_error_mean"], result.metrics["attitude_error_peak"]
-    assert "over k ≥ 15 (the window of metrics.json" in title
+    assert "over k ≥ 15, metrics.json's window" in title
     assert f"mean {mean:.3g} rad, peak {peak:.3g} rad" in title
     whole_run = attitude_errors(result.log)[1:].mean()
     assert f"{whole_run:.3g}" != f"{mean:.3g}"  # the window matters in this run
