@@ -7,7 +7,7 @@ PY := $(VENV)/bin/python
 $(PY):
 	python3 -m venv $(VENV) && $(VENV)/bin/pip install -q -e '.[test]'
 
-paper: $(PY)  ## the paper scenario: out/paper/{log.npz,metrics.json,errors.png,figures/}
+paper: $(PY)  ## the paper scenario: out/paper/{log.npz,metrics.json,error_summary.png,figures/}
 	$(VENV)/bin/drake-uuv run
 
 test: $(PY)

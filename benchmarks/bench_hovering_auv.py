@@ -27,6 +27,7 @@ sonar, filter and both controllers, built once and run once (target: 500 steps u
 """
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 
@@ -35,7 +36,12 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, VectorLogSink
 
-from drake_uuv.analysis.vehicle_figures import attitude_errors, plot_attitude_tracking, plot_thrusts
+from drake_uuv.analysis.figures import save_figure
+from drake_uuv.analysis.vehicle_figures import (
+    attitude_errors,
+    attitude_tracking_figure,
+    thrust_figure,
+)
 from drake_uuv.attitude import TrajectoryAttitudeGenerator, attitude_setting
 from drake_uuv.models.vehicle_limits import vehicle_limits
 from drake_uuv.plants import PlantSetting
@@ -287,8 +293,14 @@ def main() -> None:
     for name, value in figures.items():
         print(f"  {name:36s} {value:.4g}")
     if args.figures is not None:
-        plot_attitude_tracking(log, args.figures / "vehicle_attitude.png")
-        plot_thrusts(fast_log, config.max_thrust, args.figures / "vehicle_thrusts.png")
+        # The figures read the window's start and the thrust limit from a scenario.
+        scenario = dataclasses.replace(
+            load_scenario("paper", ["steady_state_start=0"]), plant=config
+        )
+        save_figure(
+            attitude_tracking_figure(log, scenario), args.figures / "vehicle_attitude", ("png",)
+        )
+        save_figure(thrust_figure(fast_log, scenario), args.figures / "vehicle_thrusts", ("png",))
         print(f"  figures in {args.figures}/")
 
 

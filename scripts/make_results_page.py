@@ -360,7 +360,7 @@ def main() -> None:
     paper = load_scenario("paper")
     study = Study("paper", paper, args.runs, args.work / "montecarlo")
     result = run_study(study, **execution)
-    bands = (args.work / "montecarlo" / "figures" / "bands.png").read_bytes()
+    bands = (args.work / "montecarlo" / "figures" / "error_bands.png").read_bytes()
     write_atomic(args.docs / "figures" / "bands.png", lambda f: f.write(bands))
     groups = select_groups(load_groups(STUDIES), GROUPS)
     compared = compare_groups(groups, args.work / "compare", args.runs, **execution)

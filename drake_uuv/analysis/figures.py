@@ -1,23 +1,29 @@
 """The paper's figures (§IV) and the consistency figures of one run or a Monte Carlo study.
 
-Every figure is built from a run's log (``SimulationResult.log``, the arrays of ``log.npz``)
-and its scenario, and written as PNG and SVG by :func:`save_figure`:
+Every figure of a run is built from its log (``SimulationResult.log``, the arrays of
+``log.npz``) and its scenario; :mod:`drake_uuv.analysis.registry` names the files they are
+written to:
 
-* ``errors``: estimation error (red) and tracking error (blue) against k, with insets zoomed
-  on k = 200..250 (the paper's Fig. "error"), and the PCRLB along the run (black);
-* ``trajectory``: 3-D target trajectory (red line, red triangles), UUV trajectory, sonar s1
-  (blue stars) and s2 (green stars), and an inset of the UUV's attitude frames (the paper's
-  Fig. "trajectory");
-* ``excitation``: λ_min and λ_max of Σ_{m=k}^{k+N−1} q_s q_sᵀ (paper eq. 10), N from
-  ``analysis.pe_window``;
-* ``nees``: NEES against k with the χ²(6) 95 % band;
-* ``bands`` (Monte Carlo): median and 5–95 % of the errors against k over runs, and the mean
-  NEES over runs with its χ²(6M)/M band; with the Monte Carlo PCRLB, the RMS error over runs
-  beside it.
+* :func:`error_summary_figure`: estimation and tracking errors on a log scale, with the
+  RMSEs of ``metrics.json`` over its window;
+* :func:`error_figure`: estimation error (red) and tracking error (blue) against k, with
+  insets zoomed on k = 200..250 (the paper's Fig. "error"), and the PCRLB along the run (black);
+* :func:`trajectory_figure`: 3-D target trajectory (red line, red triangles), UUV trajectory,
+  sonar s1 (blue stars) and s2 (green stars), and an inset of the UUV's attitude frames (the
+  paper's Fig. "trajectory");
+* :func:`excitation_figure`: λ_min and λ_max of Σ_{m=k}^{k+N−1} q_s q_sᵀ (paper eq. 10), N
+  from ``analysis.pe_window``;
+* :func:`nees_figure`: NEES against k with the χ²(6) 95 % band;
+* :func:`band_figure` (Monte Carlo): median and 5–95 % of the errors against k over runs, and
+  the mean NEES over runs with its χ²(6M)/M band; with the Monte Carlo PCRLB, the RMS error over
+  runs beside it.
 
-Matplotlib runs on the Agg backend; figures are closed after saving.
+Matplotlib runs on the Agg backend; figures are closed after saving. The 2-D figures use
+Matplotlib's constrained layout, so labels and legends stay inside the figure whatever the
+numbers, and titles are wrapped to the figure's width (:func:`fit_lines`).
 """
 
+import textwrap
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
@@ -30,9 +36,8 @@ from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter  # noqa: E402
 
 from drake_uuv.analysis.stats import nees_band  # noqa: E402
-from drake_uuv.analysis.vehicle_figures import attitude_tracking_figure, thrust_figure  # noqa: E402
 from drake_uuv.io import save_figure_atomic  # noqa: E402
-from drake_uuv.metrics import bound_covariances, errors  # noqa: E402
+from drake_uuv.metrics import bound_covariances, errors, rms_norm  # noqa: E402
 from drake_uuv.models.information import excitation_eigenvalues  # noqa: E402
 from drake_uuv.scenario import Scenario, describe  # noqa: E402
 
@@ -47,6 +52,10 @@ UUV_COLOR = "0.25"
 ZOOM = (200, 250)
 FORMATS = ("png", "svg")
 STATE_DIMENSION = 6
+TITLE_SIZE = 9
+# The mean advance of a character of DejaVu Sans, Matplotlib's default font, in ems (digits
+# are 0.64 em, lower case about 0.55 em): how many characters a line of a given width holds.
+CHARACTER_WIDTH_EM = 0.6
 
 
 def save_figure(figure: Figure, stem: Path, formats: Iterable[str] = FORMATS) -> list[Path]:
@@ -57,27 +66,64 @@ def save_figure(figure: Figure, stem: Path, formats: Iterable[str] = FORMATS) ->
     return paths
 
 
-def _set_margins(figure: Figure, hspace: float = 0.08) -> None:
-    """Fixed margins in inches: a layout engine (tight/constrained) doubles the drawing time."""
-    width, height = figure.get_size_inches()
-    figure.subplots_adjust(
-        left=0.8 / width,
-        right=1.0 - 0.15 / width,
-        bottom=0.55 / height,
-        top=1.0 - 0.35 / height,
-        hspace=hspace,
-    )
+def fit_lines(lines: Sequence[str], width: float, fontsize: float = TITLE_SIZE) -> str:
+    """``lines`` joined by newlines, each wrapped to ``width`` inches of text at ``fontsize``.
+
+    A layout engine makes room for a title's height but not its width: a title wider than the
+    figure is cut off at both sides, so it is wrapped here.
+    """
+    characters = max(20, int(width * 72.0 / (CHARACTER_WIDTH_EM * fontsize)))
+    return "\n".join(textwrap.fill(line, characters) for line in lines if line)
 
 
-def _readable_log_ticks(axis: plt.Axes) -> None:
-    """Log y axis labelled at 1, 2, 5 × 10ⁿ in plain numbers, without minor labels."""
-    axis.yaxis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
-    axis.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+def suptitle(figure: Figure, *lines: str) -> None:
+    """The figure's title: ``lines``, each on its own line(s), fitted to the figure's width."""
+    figure.suptitle(fit_lines(lines, 0.96 * figure.get_size_inches()[0]), fontsize=TITLE_SIZE)
+
+
+def _readable_log_ticks(axis: plt.Axes, decades: float = 3.0) -> None:
+    """Log y axis without minor labels, labelled at 1, 2, 5 × 10ⁿ in plain numbers while the
+    data span at most ``decades`` decades, at the powers of ten beyond (where 1, 2, 5 would
+    overlap). Call it once the data are drawn."""
+    low, high = axis.get_ylim()
+    if np.log10(high / low) <= decades:
+        axis.yaxis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
+        axis.yaxis.set_major_formatter(FormatStrFormatter("%g"))
     axis.yaxis.set_minor_formatter(NullFormatter())
 
 
 def _title(scenario: Scenario) -> str:
     return f"{describe(scenario)}, seed {scenario.random_seed}"
+
+
+def error_summary_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
+    """Estimation error |q − q̂|, |ϑ − ϑ̂| and tracking error |q − R q*| against k (log
+    scale), with the RMSEs ``metrics.json`` reports over its window k ≥ steady_state_start."""
+    e = errors(log, scenario)
+    k = log["k"]
+    start = scenario.steady_state_start
+    figure, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 5.5), layout="constrained")
+    axes[0].semilogy(k, np.linalg.norm(e["position"], axis=1), color=ESTIMATION_COLOR, lw=1.0)
+    axes[0].semilogy(
+        k, np.linalg.norm(e["velocity"], axis=1), color=ESTIMATION_COLOR, lw=0.8, ls=":"
+    )
+    axes[0].set_ylabel("estimation error")
+    axes[0].legend(["|q − q̂| [m]", "|ϑ − ϑ̂| [m/s]"], loc="upper right", fontsize=8)
+    axes[1].semilogy(k, np.linalg.norm(e["tracking"], axis=1), color=TRACKING_COLOR, lw=1.0)
+    axes[1].set_ylabel("tracking error |q − R q*| [m]")
+    axes[1].set_xlabel("step k (dashed: the window's start)")
+    for axis in axes:
+        axis.axvline(start, color="0.6", lw=0.8, ls="--")
+        axis.grid(True, which="both", alpha=0.3)
+    window = slice(start, None)
+    suptitle(
+        figure,
+        _title(scenario),
+        f"over k ≥ {start}, the window of metrics.json: position RMSE "
+        f"{rms_norm(e['position'][window]):.3f} m, tracking RMSE "
+        f"{rms_norm(e['tracking'][window]):.3f} m",
+    )
+    return figure
 
 
 def _zoom_window(steps: int) -> tuple[int, int] | None:
@@ -124,8 +170,7 @@ def error_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
     velocity = np.linalg.norm(e["velocity"], axis=1)
     tracking = np.linalg.norm(e["tracking"], axis=1)
     bound = bound_curves(bound_covariances(log, scenario)["pcrlb"])
-    figure, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
-    _set_margins(figure)
+    figure, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6), layout="constrained")
     estimation_series = [
         (position, dict(color=ESTIMATION_COLOR, lw=1.0, label="|q − q̂| [m]")),
         (velocity, dict(color=ESTIMATION_COLOR, lw=0.8, ls=":", label="|ϑ − ϑ̂| [m/s]")),
@@ -147,7 +192,7 @@ def error_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
         if window is not None:
             _add_zoom_inset(axis, k, series, window)
     axes[1].set_xlabel("step k")
-    axes[0].set_title(_title(scenario), fontsize=9)
+    suptitle(figure, _title(scenario), "estimation error against the PCRLB of this run")
     return figure
 
 
@@ -189,7 +234,8 @@ def trajectory_figure(
     s1, s2 = sensor_positions(log)
 
     figure = plt.figure(figsize=(10, 7))
-    axis = figure.add_axes([0.0, 0.02, 0.62, 0.9], projection="3d")
+    # Placed by hand: Matplotlib's layout engines do not lay out 3-D axes.
+    axis = figure.add_axes([0.02, 0.02, 0.58, 0.86], projection="3d")
     axis.plot(*target[selected].T, color=TARGET_COLOR, lw=1.2, label="target")
     axis.scatter(*target[marks].T, color=TARGET_COLOR, marker="^", s=18, depthshade=False)
     axis.plot(*uuv[selected].T, color=UUV_COLOR, lw=0.8, label="UUV")
@@ -200,9 +246,9 @@ def trajectory_figure(
     axis.set_ylabel("y [m]")
     axis.set_zlabel("z [m]")
     axis.legend(loc="upper left", fontsize=8)
-    axis.set_title(f"k = {start}..{end}: {_title(scenario)}", fontsize=9)
+    suptitle(figure, _title(scenario), f"target, UUV and sonars over k = {start}..{end}")
 
-    _attitude_inset(figure.add_axes([0.58, 0.5, 0.42, 0.45], projection="3d"), log, start, frames)
+    _attitude_inset(figure.add_axes([0.58, 0.45, 0.4, 0.42], projection="3d"), log, start, frames)
     return figure
 
 
@@ -235,7 +281,9 @@ def _attitude_inset(axis, log: dict[str, np.ndarray], start: int, frames: int) -
     axis.set_box_aspect((width, 2.0 * length, height))
     axis.set_axis_off()
     axis.view_init(elev=12, azim=-80)
-    axis.set_title("UUV attitude R(k): body x, y, z (red, green, blue), s1–s2", fontsize=8)
+    axis.set_title(
+        "UUV attitude R(k): body x, y, z (red, green, blue)\nand the baseline s1–s2", fontsize=8
+    )
 
 
 def excitation_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
@@ -243,8 +291,7 @@ def excitation_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
     n = scenario.analysis.pe_window
     low, high = excitation_eigenvalues(log["b_W"], n)
     xi2 = float(np.dot(scenario.sonar.baseline, scenario.sonar.baseline))
-    figure, axis = plt.subplots(figsize=(8, 4))
-    _set_margins(figure)
+    figure, axis = plt.subplots(figsize=(8, 4), layout="constrained")
     k = np.arange(len(low))
     axis.plot(k, high, color="tab:purple", lw=1.0, label="λ_max")
     axis.plot(k, low, color="tab:orange", lw=1.0, label="λ_min")
@@ -252,11 +299,13 @@ def excitation_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
     axis.axhline(n * xi2 / 3.0, color="0.4", ls=":", lw=0.8, label="N|b|²/3 (isotropic)")
     axis.set_ylim(bottom=0.0, top=1.1 * n * xi2)
     axis.set_xlabel("window start k")
-    axis.set_ylabel(f"eigenvalue of Σ q_s q_sᵀ over N = {n} steps [m²]")
+    axis.set_ylabel(f"eigenvalue of Σ q_s q_sᵀ,\nN = {n} steps [m²]")
     axis.grid(True, alpha=0.3)
     axis.legend(fontsize=8, loc="center right")
     worst = float(np.min(low)) if len(low) else float("nan")
-    axis.set_title(f"{_title(scenario)}; min over k of λ_min = {worst:.3g} m²", fontsize=9)
+    suptitle(
+        figure, _title(scenario), f"persistent excitation: min over k of λ_min = {worst:.3g} m²"
+    )
     return figure
 
 
@@ -268,56 +317,26 @@ def nees_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
     start = scenario.steady_state_start
     steady = nees[start:]
     inside = float(np.mean((steady >= low) & (steady <= high)))
-    figure, axis = plt.subplots(figsize=(8, 4))
-    _set_margins(figure)
+    figure, axis = plt.subplots(figsize=(8, 4), layout="constrained")
     axis.axhspan(low, high, color="tab:green", alpha=0.15, label="χ²(6) 95 % band")
     axis.semilogy(k, np.maximum(nees, 1e-6), color="tab:blue", lw=0.6, label="NEES")
-    _readable_log_ticks(axis)
     axis.axhline(STATE_DIMENSION, color="tab:green", lw=0.8, ls="--", label="6 (consistent)")
-    axis.hlines(float(np.mean(steady)), start, k[-1], color="black", lw=1.2, label="mean, k ≥ ss")
+    axis.hlines(
+        float(np.mean(steady)), start, k[-1], color="black", lw=1.2, label=f"mean, k ≥ {start}"
+    )
+    _readable_log_ticks(axis)
     axis.axvline(start, color="0.6", lw=0.8, ls="--")
     axis.set_xlabel("step k")
     axis.set_ylabel("NEES eᵀP⁻¹e")
     axis.grid(True, which="both", alpha=0.3)
     axis.legend(fontsize=8, loc="upper right")
-    axis.set_title(
-        f"{_title(scenario)}: mean NEES {np.mean(steady):.2f}, "
-        f"{100 * inside:.0f} % of k ≥ {start} inside [{low:.2f}, {high:.2f}]",
-        fontsize=9,
+    suptitle(
+        figure,
+        _title(scenario),
+        f"over k ≥ {start}, the window of metrics.json: mean NEES {np.mean(steady):.2f}, "
+        f"{100 * inside:.0f} % inside [{low:.2f}, {high:.2f}]",
     )
     return figure
-
-
-def run_figures(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, Figure]:
-    """The figures of one run, by file stem: the four of every run, and for a vehicle that
-    logs its commanded attitude and thrusts (``!HoveringAuv``) its attitude tracking and
-    thrusts against their limits."""
-    figures = {
-        "errors": error_figure(log, scenario),
-        "trajectory": trajectory_figure(log, scenario),
-        "excitation": excitation_figure(log, scenario),
-        "nees": nees_figure(log, scenario),
-    }
-    if "R_WB_command" in log:
-        figures["attitude_tracking"] = attitude_tracking_figure(log)
-    if "thrust" in log:
-        figures["thrusts"] = thrust_figure(log, scenario.plant.max_thrust)
-    return figures
-
-
-def write_run_figures(
-    log: dict[str, np.ndarray],
-    scenario: Scenario,
-    folder: Path,
-    formats: Iterable[str] = FORMATS,
-) -> list[Path]:
-    """Writes the figures of one run into ``folder`` (PNG and SVG); returns the paths."""
-    folder = Path(folder)
-    formats = tuple(formats)
-    paths: list[Path] = []
-    for stem, figure in run_figures(log, scenario).items():
-        paths += save_figure(figure, folder / stem, formats)
-    return paths
 
 
 def band_figure(
@@ -340,8 +359,7 @@ def band_figure(
         ("velocity", "|ϑ − ϑ̂| [m/s]", ESTIMATION_COLOR),
         ("tracking", "|q − R q*| [m]", TRACKING_COLOR),
     ]
-    figure, axes = plt.subplots(4, 1, sharex=True, figsize=(8, 9))
-    _set_margins(figure)
+    figure, axes = plt.subplots(4, 1, sharex=True, figsize=(8, 9), layout="constrained")
     for axis, (key, label, color) in zip(axes, panels, strict=False):
         values = np.asarray(norms[key], dtype=float)
         low, median, high = np.nanpercentile(values, [5, 50, 95], axis=0)
@@ -369,5 +387,5 @@ def band_figure(
         axis.axvline(scenario.steady_state_start, color="0.6", lw=0.8, ls="--")
     seeds = f"seeds {scenario.random_seed}..{scenario.random_seed + runs - 1}"
     default = f"{runs} runs: {_title(scenario).rsplit(', seed', 1)[0]}, {seeds}"
-    axes[0].set_title(title or default, fontsize=9)
+    suptitle(figure, title or default)
     return figure

@@ -8,8 +8,7 @@ from drake_uuv.cli.options import UsageError, add_scenario_options, scenario_fro
 
 
 def _run(args: argparse.Namespace) -> int:
-    from drake_uuv.analysis.figures import write_run_figures
-    from drake_uuv.analysis.plots import plot_errors
+    from drake_uuv.analysis.registry import write_run_figures
     from drake_uuv.simulation import ClosedLoopSimulation
 
     scenario = scenario_from_args(args)
@@ -24,8 +23,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"Meshcat is serving the live scene at {meshcat.web_url()}")
     result = ClosedLoopSimulation(scenario, meshcat=meshcat).run(realtime_rate=args.realtime_rate)
     result.save(out)
-    plot_errors(result, out / "errors.png")
-    write_run_figures(result.log, scenario, out / "figures")
+    write_run_figures(result.log, scenario, out)
     m = result.metrics
     print(
         f"{scenario.steps} steps in {m['wall_time_s']:.2f} s: position RMSE "

@@ -8,9 +8,10 @@ the backend (local processes, or a ``dask.distributed`` cluster via ``scheduler`
 The missing seeds of every study are split into chunks, one task each
 (:func:`drake_uuv.studies.runner.run_task`); the client writes each finished chunk to the
 study folder at once (:func:`drake_uuv.studies.storage.write_part`), and when all are done
-reads the runs back and writes ``runs.csv``, ``summary.json`` and ``figures/bands.{png,svg}``
-(median and 5–95 % of the errors against k, mean NEES with its χ² band, and the RMS error over
-runs beside the Monte Carlo PCRLB).
+reads the runs back and writes ``runs.csv``, ``summary.json`` and the figures of
+:data:`drake_uuv.analysis.registry.STUDY_FIGURES` (``figures/error_bands.{png,svg}``: median
+and 5–95 % of the errors against k, mean NEES with its χ² band, and the RMS error over runs
+beside the Monte Carlo PCRLB).
 """
 
 import math
@@ -158,7 +159,7 @@ def run_studies(
     ``resume``: keep the runs already in each ``out_dir`` and compute only the missing ones.
     ``chunk_size``: seeds per task (default: small enough to balance the load and to lose
     little on interruption, large enough to keep task overhead negligible).
-    ``figures``: also draw each study's ``figures/bands.{png,svg}``.
+    ``figures``: also draw each study's ``figures/error_bands.{png,svg}``.
     Raises :class:`MonteCarloError` on a bad request (naming the option and the value).
     """
     if chunk_size is not None and chunk_size < 1:
@@ -228,16 +229,15 @@ def _band_figure(
     study: Study, norms: np.ndarray, information: np.ndarray | None, runs: int
 ) -> None:
     # Imported here: matplotlib is loaded only when a figure is drawn.
-    from drake_uuv.analysis.figures import band_figure, bound_curves, save_figure
+    from drake_uuv.analysis.figures import bound_curves
+    from drake_uuv.analysis.registry import write_study_figures
 
     bounds = None
     if information is not None:
         bounds = bound_curves(monte_carlo_bound(information, runs, study.scenario))
-    save_figure(
-        band_figure(
-            dict(zip(NORMS, np.moveaxis(norms, 1, 0), strict=True)),
-            study.scenario,
-            bounds=bounds,
-        ),
-        Path(study.out_dir) / "figures" / "bands",
+    write_study_figures(
+        dict(zip(NORMS, np.moveaxis(norms, 1, 0), strict=True)),
+        study.scenario,
+        Path(study.out_dir),
+        bounds=bounds,
     )

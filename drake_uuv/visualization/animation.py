@@ -1,7 +1,10 @@
 """A recorded 3-D animation of a run: the :class:`~drake_uuv.visualization.scene.MeshcatScene`
-replayed from a log into a Meshcat recording, written as one self-contained HTML page."""
+replayed from a log into a Meshcat recording, written as one self-contained HTML page with a
+key to the scene's colours (:func:`legend_html`)."""
 
-from collections.abc import Mapping
+import html
+import logging
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +18,10 @@ from drake_uuv.visualization.scene import (
     SceneStyle,
     ThrusterLayout,
 )
+from drake_uuv.visualization.scene_content import LegendEntry, legend_entries
+
+#: The id of the key's element in the page.
+LEGEND_ID = "drake-uuv-legend"
 
 
 def _check_log(log: Mapping[str, np.ndarray]) -> int:
@@ -31,6 +38,37 @@ def _check_log(log: Mapping[str, np.ndarray]) -> int:
     if n == 0:
         raise ValueError("log has no steps")
     return n
+
+
+def recording_meshcat() -> Meshcat:
+    """A Meshcat instance to record into. Its server's "listening for connections at
+    localhost" line, logged at start, would read as where the animation is; it is held back
+    (Drake's log is quieted while the server starts)."""
+    logger = logging.getLogger("drake")
+    level = logger.level
+    logger.setLevel(logging.WARNING)
+    try:
+        return Meshcat()
+    finally:
+        logger.setLevel(level)
+
+
+def legend_html(entries: Sequence[LegendEntry]) -> str:
+    """A key to the scene's colours: a box fixed at the page's bottom left (clear of
+    Meshcat's controls at the top right), one coloured swatch and label per entry."""
+    rows = "".join(
+        '<div style="display:flex;align-items:center;margin:2px 0">'
+        f'<span style="display:inline-block;width:14px;height:14px;margin-right:7px;'
+        f"border:1px solid #555;background:rgba({', '.join(f'{round(255 * c)}' for c in e.rgb)},"
+        f'{max(e.opacity, 0.3):g})"></span>{html.escape(e.label)}</div>'
+        for e in entries
+    )
+    return (
+        f'<div id="{LEGEND_ID}" style="position:fixed;left:10px;bottom:10px;z-index:10;'
+        "padding:6px 10px;background:rgba(255,255,255,0.85);border-radius:4px;"
+        'font:13px sans-serif;color:#222;pointer-events:none">'
+        f"<b>drake_uuv scene</b>{rows}</div>"
+    )
 
 
 def record_animation(
@@ -67,7 +105,7 @@ def record_animation(
     Returns:
         ``out_html``. The page embeds all scripts and data (no network needed)
         and autoplays the recording once; Meshcat's "Animations" panel replays
-        and scrubs it.
+        and scrubs it. A key at the bottom left names the colours.
     """
     n = _check_log(log)
     if thrusters is not None and np.shape(log.get("thrust")) != (n, thrusters.count):
@@ -81,7 +119,7 @@ def record_animation(
         raise ValueError(f"playback_speed must be > 0, got {playback_speed}")
     out_html = Path(out_html)
     if meshcat is None:
-        meshcat = Meshcat()
+        meshcat = recording_meshcat()
     meshcat.DeleteRecording()
     scene = MeshcatScene(meshcat, baseline_B, trail_length, follow_target, style, thrusters)
     scene.frame_log(log)
@@ -94,6 +132,14 @@ def record_animation(
         scene.draw(SceneFrame.from_log(log, k), time_in_recording=(k + 0.5) / fps)
     meshcat.StopRecording()
     meshcat.PublishRecording()
-    html = meshcat.StaticHtml()
-
-    return write_text_atomic(out_html, html)
+    page = meshcat.StaticHtml()
+    key = legend_entries(
+        scene.style,
+        trail_length=trail_length,
+        thrusters=thrusters is not None,
+        follow_target=follow_target,
+    )
+    if "</body>" not in page:
+        raise RuntimeError("Meshcat's StaticHtml has no </body>: nowhere to put the legend")
+    page = page.replace("</body>", legend_html(key) + "\n</body>", 1)
+    return write_text_atomic(out_html, page)

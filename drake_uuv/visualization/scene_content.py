@@ -16,9 +16,11 @@ if TYPE_CHECKING:
 
 __all__ = [
     "LOG_KEYS",
+    "LegendEntry",
     "SceneFrame",
     "SceneStyle",
     "ThrusterLayout",
+    "legend_entries",
     "thruster_jets",
     "world_particles",
 ]
@@ -195,3 +197,44 @@ def world_particles(lower: np.ndarray, upper: np.ndarray, style: SceneStyle) -> 
     if len(points) > st.max_particles:
         points = points[:: int(np.ceil(len(points) / st.max_particles))]
     return points
+
+
+@dataclass(frozen=True)
+class LegendEntry:
+    """One line of the scene's key: a colour (RGB in [0, 1], drawn at ``opacity``) and what
+    it shows."""
+
+    rgb: tuple[float, float, float]
+    label: str
+    opacity: float = 1.0
+
+
+def legend_entries(
+    style: SceneStyle, *, trail_length: int, thrusters: bool, follow_target: bool
+) -> list[LegendEntry]:
+    """The key to the scene's colours, one entry per kind of object it draws."""
+    entries = [
+        LegendEntry(style.body_rgb, "UUV body"),
+        LegendEntry(style.s1_rgb, "sonar s1 and its range beam to the target"),
+        LegendEntry(style.s2_rgb, "sonar s2 and its range beam to the target"),
+        LegendEntry(style.baseline_rgb, "sonar baseline s1–s2"),
+        LegendEntry(style.target_rgb, "target (true position)"),
+        LegendEntry(style.estimate_rgb, "estimated target position p_WU − q̂"),
+        LegendEntry(
+            style.estimate_rgb,
+            f"{style.covariance_sigma:g}σ ellipsoid of the estimate (position block of P)",
+            style.covariance_opacity,
+        ),
+    ]
+    if trail_length > 0:
+        entries += [
+            LegendEntry(style.uuv_trail_rgb, f"UUV trail, last {trail_length} steps"),
+            LegendEntry(style.target_trail_rgb, f"target trail, last {trail_length} steps"),
+        ]
+    if thrusters:
+        entries.append(LegendEntry(style.thruster_rgb, "thruster effort, length ∝ thrust"))
+    if follow_target:
+        entries.append(
+            LegendEntry(style.particle_rgb, "world-fixed particles: the view follows the target")
+        )
+    return entries

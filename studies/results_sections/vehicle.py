@@ -139,12 +139,12 @@ def _figures(docs: Path) -> None:
         scenario = load_scenario("paper", list(overrides[f"{name}-vehicle-navigation"]))
         result = ClosedLoopSimulation(scenario).run(FIGURE_SEED)
         save_figure(
-            attitude_tracking_figure(result.log),
+            attitude_tracking_figure(result.log, scenario),
             docs / "figures" / f"vehicle_{name}_attitude",
             formats=("png",),
         )
         save_figure(
-            thrust_figure(result.log, scenario.plant.max_thrust),
+            thrust_figure(result.log, scenario),
             docs / "figures" / f"vehicle_{name}_thrusts",
             formats=("png",),
         )

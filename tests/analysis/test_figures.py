@@ -1,22 +1,22 @@
-"""The paper's figures: written as PNG and SVG, with content, from one short run."""
+"""The paper's figures: written as PNG and SVG, with content, from one short run (the file
+names are the registry's, drake_uuv/analysis/registry.py)."""
 
 import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
 import matplotlib.image
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from drake_uuv.analysis.figures import (
-    excitation_eigenvalues,
-    sensor_positions,
-    write_run_figures,
-)
+from drake_uuv.analysis.figures import excitation_eigenvalues, sensor_positions
+from drake_uuv.analysis.registry import RUN_FIGURES, write_run_figures
 from drake_uuv.cli import main
 from drake_uuv.scenario import load_scenario
 from drake_uuv.simulation import simulate
 
-STEMS = ("errors", "trajectory", "excitation", "nees")
+# The figures of a run of the paper's kinematic vehicle, relative to the run's folder.
+STEMS = tuple(f"{e.folder}/{e.name}".lstrip("/") for e in RUN_FIGURES if not e.needs)
 
 
 @pytest.fixture(scope="module")
@@ -45,19 +45,19 @@ def _colour_fraction(path: Path, channel: int) -> float:
 @pytest.mark.slow
 def test_run_figures_are_written_as_png_and_svg_with_content(run, tmp_path):
     paths = write_run_figures(run.log, run.scenario, tmp_path)
-    assert sorted(p.name for p in paths) == sorted(
-        f"{s}.{e}" for s in STEMS for e in ("png", "svg")
-    )
-    for stem in STEMS:
-        png = tmp_path / f"{stem}.png"
-        assert _ink_fraction(png) > 0.02, f"{png.name} is blank"
-        svg = ElementTree.parse(tmp_path / f"{stem}.svg").getroot()
-        drawn = [e for e in svg.iter() if e.tag.endswith(("path", "use"))]
-        assert len(drawn) > 50, f"{stem}.svg draws almost nothing"
-    errors_png = tmp_path / "errors.png"
-    assert _colour_fraction(errors_png, 0) > 1e-3, "no red estimation-error line"
-    assert _colour_fraction(errors_png, 2) > 1e-3, "no blue tracking-error line"
-    assert _colour_fraction(tmp_path / "trajectory.png", 0) > 1e-4, "no red target trajectory"
+    assert {p.relative_to(tmp_path).with_suffix("").as_posix() for p in paths} == set(STEMS)
+    for path in paths:
+        if path.suffix == ".png":
+            assert _ink_fraction(path) > 0.02, f"{path.name} is blank"
+        else:
+            svg = ElementTree.parse(path).getroot()
+            drawn = [e for e in svg.iter() if e.tag.endswith(("path", "use"))]
+            assert len(drawn) > 50, f"{path.name} draws almost nothing"
+    for errors_png in (tmp_path / "error_summary.png", tmp_path / "figures/errors_vs_pcrlb.png"):
+        assert _colour_fraction(errors_png, 0) > 1e-3, "no red estimation-error line"
+        assert _colour_fraction(errors_png, 2) > 1e-3, "no blue tracking-error line"
+    trajectory = tmp_path / "figures/trajectory_3d.png"
+    assert _colour_fraction(trajectory, 0) > 1e-4, "no red target trajectory"
 
 
 @pytest.mark.slow
@@ -98,9 +98,10 @@ def test_drake_uuv_run_writes_the_figures(tmp_path):
         ["run", "--out", str(tmp_path), "--set", "steps=30", "--set", "steady_state_start=5"]
     )
     assert status == 0
-    for stem in STEMS:
-        for suffix in ("png", "svg"):
-            assert (tmp_path / "figures" / f"{stem}.{suffix}").stat().st_size > 0
+    for entry in RUN_FIGURES:
+        for suffix in entry.formats:
+            path = tmp_path / entry.folder / f"{entry.name}.{suffix}"
+            assert path.exists() == (not entry.needs), path
 
 
 def test_pe_window_is_validated():
@@ -108,3 +109,20 @@ def test_pe_window_is_validated():
 
     with pytest.raises(ScenarioError, match=r"analysis\.pe_window: must be in \[1, 1e6\], got 0"):
         load_scenario("paper", ["analysis.pe_window=0"])
+
+
+def test_the_vehicle_attitude_title_reports_the_metrics_window() -> None:
+    """The mean and peak attitude error in the title are metrics.json's, over k ≥
+    steady_state_start (not over the whole run, whose start is far worse)."""
+    from drake_uuv.analysis.vehicle_figures import attitude_errors, attitude_tracking_figure
+
+    scenario = load_scenario("paper", ["plant=!HoveringAuv", "steps=30", "steady_state_start=15"])
+    result = simulate(scenario)
+    figure = attitude_tracking_figure(result.log, scenario)
+    title = " ".join(figure.get_suptitle().split())  # unwrapped
+    mean, peak = result.metrics["attitude_error_mean"], result.metrics["attitude_error_peak"]
+    assert "over k ≥ 15, metrics.json's window" in title
+    assert f"mean {mean:.3g} rad, peak {peak:.3g} rad" in title
+    whole_run = attitude_errors(result.log)[1:].mean()
+    assert f"{whole_run:.3g}" != f"{mean:.3g}"  # the window matters in this run
+    plt.close(figure)

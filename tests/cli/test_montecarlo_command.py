@@ -39,9 +39,9 @@ def test_montecarlo_command_writes_runs_summary_and_bands(tmp_path, capsys):
     assert low <= summary["position_rmse"] <= high
     assert summary["nees_mean"] == pytest.approx(np.mean([float(r["nees_mean"]) for r in rows]))
     assert len(summary["diverged_fraction_ci95"]) == 2
-    assert (tmp_path / "figures" / "bands.png").read_bytes()[:4] == b"\x89PNG"
-    assert (tmp_path / "figures" / "bands.png").stat().st_size > 10_000
-    assert "<svg" in (tmp_path / "figures" / "bands.svg").read_text()
+    assert (tmp_path / "figures" / "error_bands.png").read_bytes()[:4] == b"\x89PNG"
+    assert (tmp_path / "figures" / "error_bands.png").stat().st_size > 10_000
+    assert "<svg" in (tmp_path / "figures" / "error_bands.svg").read_text()
     out = capsys.readouterr().out.splitlines()
     assert out[0] == f"computed 3 runs -> {tmp_path}/"
     assert out[1] == "3 runs, seeds 0..2, k ≥ 20:"

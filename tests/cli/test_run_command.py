@@ -28,8 +28,8 @@ def test_run_writes_log_metrics_and_figure(tmp_path) -> None:
     error = (log["p_WU"] - log["p_WT"] - log["x_TU_hat"][:, :3])[60:]
     rmse = np.sqrt(np.mean(np.sum(error**2, axis=1)))
     assert metrics["position_rmse"] == pytest.approx(rmse, rel=1e-12)
-    assert (out / "errors.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert (out / "errors.png").stat().st_size > 10_000
+    assert (out / "error_summary.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (out / "error_summary.png").stat().st_size > 10_000
 
 
 @pytest.mark.slow

@@ -10,17 +10,19 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 
+from drake_uuv.analysis.figures import save_figure
 from drake_uuv.analysis.vehicle_figures import (
     attitude_errors,
-    plot_attitude_tracking,
-    plot_thrusts,
+    attitude_tracking_figure,
     roll_pitch_yaw,
+    thrust_figure,
+    wrap_angles,
 )
 from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.so3 import exp_so3, log_so3
 from drake_uuv.plants import PlantSetting
 from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
-from drake_uuv.scenario import ScenarioError
+from drake_uuv.scenario import ScenarioError, load_scenario
 from drake_uuv.scenario.plants import HoveringAuv
 from tests.conftest import T
 
@@ -107,11 +109,30 @@ def test_thrusters_reproduce_the_papers_step() -> None:
 @pytest.mark.slow
 def test_figures_are_written(tmp_path) -> None:
     log = simulate(make_plant(), np.array([0.3, 0.0, 0.0]), np.array([0.0, 0.3, 0.6]), 12)
-    assert plot_attitude_tracking(log, tmp_path / "attitude.png").stat().st_size > 10_000
-    assert (
-        plot_thrusts(log, HoveringAuv().max_thrust, tmp_path / "thrusts.png").stat().st_size
-        > 10_000
-    )
+    scenario = load_scenario("paper", ["plant=!HoveringAuv", "steps=12", "steady_state_start=2"])
+    for name, figure in (
+        ("attitude", attitude_tracking_figure(log, scenario)),
+        ("thrusts", thrust_figure(log, scenario)),
+    ):
+        (path,) = save_figure(figure, tmp_path / name, ("png",))
+        assert path.stat().st_size > 10_000
+
+
+def test_wrapped_angles_stay_within_pi_of_their_command() -> None:
+    """Unwrapped, a command and an achieved angle 0.1 rad apart can be drawn 2π + 0.1 apart;
+    wrapped, the gap drawn is 0.1, and the lines break (a NaN row) where the command crosses
+    ±π, between 3.1 and 3.2 rad (= 3.2 − 2π), not across the panel."""
+    time = np.arange(5.0)
+    commanded = np.array([3.0, 3.1, 3.2, 3.3, -1.0])
+    achieved = commanded - 0.1 + 2.0 * np.pi * np.array([0, 1, -1, 3, -2])
+    shown_time, shown_command, shown = wrap_angles(time, commanded, achieved)
+    assert np.flatnonzero(np.isnan(shown_command)).tolist() == [2]
+    assert np.flatnonzero(np.isnan(shown)).tolist() == [2]
+    assert np.flatnonzero(np.isnan(shown_time)).tolist() == [2]
+    keep = ~np.isnan(shown_time)
+    assert_allclose(shown_time[keep], time)
+    assert_allclose(shown_command[keep], [3.0, 3.1, 3.2 - 2 * np.pi, 3.3 - 2 * np.pi, -1.0])
+    assert_allclose(shown_command[keep] - shown[keep], 0.1, atol=1e-12)
 
 
 def test_roll_pitch_yaw_matches_drake() -> None:

@@ -18,6 +18,7 @@ from drake_uuv.visualization.scene import (
     SCENE_ROOT,
     SceneFrame,
     SceneStyle,
+    ThrusterLayout,
     _covariance_axes,
     world_particles,
 )
@@ -222,3 +223,49 @@ def test_the_builder_wires_the_live_visualizer_by_name(meshcat) -> None:
     tail = np.frombuffer(meshcat._GetPackedTransform(SCENE_ROOT)[-16 * 9 :], dtype=np.uint8)
     matrix = np.frombuffer(tail.reshape(16, 9)[:, 1:].tobytes(), dtype=">f8").reshape(4, 4).T
     np.testing.assert_allclose(matrix[:3, 3], -p_WT)
+
+
+def _legend(html: str) -> str:
+    match = re.search(r'<div id="drake-uuv-legend".*?</div></div>', html, re.DOTALL)
+    assert match, "no legend in the page"
+    return match.group(0)
+
+
+def test_the_page_has_a_key_to_every_colour_of_the_scene(tmp_path: Path, short_log) -> None:
+    """The key lists the vehicle, the sonars, the target, the estimate and its ellipsoid, the
+    trails and the particles, each with its colour in the scene's style."""
+    style = SceneStyle()
+    out = record_animation(short_log, BASELINE_B, TIME_STEP, tmp_path / "a.html", trail_length=7)
+    legend = _legend(out.read_text(encoding="utf-8"))
+    expected = {
+        "UUV body": style.body_rgb,
+        "sonar s1": style.s1_rgb,
+        "sonar s2": style.s2_rgb,
+        "sonar baseline": style.baseline_rgb,
+        "target (true position)": style.target_rgb,
+        "estimated target position": style.estimate_rgb,
+        "3σ ellipsoid of the estimate": style.estimate_rgb,
+        "UUV trail, last 7 steps": style.uuv_trail_rgb,
+        "target trail, last 7 steps": style.target_trail_rgb,
+        "world-fixed particles": style.particle_rgb,
+    }
+    swatches = re.findall(
+        r"background:rgba\((\d+), (\d+), (\d+),([\d.]+)\)\"></span>([^<]*)<", legend
+    )
+    by_label = {label: tuple(int(c) for c in rgb) for *rgb, _, label in swatches}
+    assert len(swatches) == len(expected)
+    for start, rgb in expected.items():
+        (label,) = [label for label in by_label if label.startswith(start)]
+        assert by_label[label] == tuple(round(255 * c) for c in rgb), label
+    assert "thruster" not in legend
+
+
+def test_the_key_follows_the_options(tmp_path: Path, short_log) -> None:
+    """No trails, a fixed camera: neither trails nor particles in the key; thrusters: theirs."""
+    log = dict(short_log, thrust=np.zeros((len(short_log["p_WU"]), 2)))
+    thrusters = ThrusterLayout(np.eye(3)[:2], np.eye(3)[:2], 10.0)
+    out = record_animation(log, BASELINE_B, TIME_STEP, tmp_path / "a.html", trail_length=0,
+                           follow_target=False, thrusters=thrusters)  # fmt: skip
+    legend = _legend(out.read_text(encoding="utf-8"))
+    assert "trail" not in legend and "particles" not in legend
+    assert "thruster effort" in legend and "UUV body" in legend

@@ -19,6 +19,7 @@ from PIL import Image
 from pydrake.geometry import Meshcat
 
 from drake_uuv.visualization import MeshcatScene, SceneStyle, record_animation
+from drake_uuv.visualization.animation import LEGEND_ID
 from drake_uuv.visualization.scene import MESHCAT_DEFAULT_FOV_DEG
 from tests.visualization._chromium import Chromium, find_chromium
 from tests.visualization.synthetic_log import BASELINE_B, TIME_STEP, synthetic_log
@@ -44,6 +45,15 @@ SCENE_SIZE_JS = """(() => {
   if (!root || viewer.animator.actions.length === 0) return -1;
   let n = 0; root.traverse(() => { n += 1; }); return n;
 })()"""
+
+# The key to the colours: shown or not, its box in the window, its text.
+LEGEND_JS = f"""(() => {{
+  const e = document.getElementById("{LEGEND_ID}");
+  if (!e) return {{shown: false, box: [0, 0, 0, 0], text: ""}};
+  const r = e.getBoundingClientRect();
+  return {{shown: getComputedStyle(e).display !== "none" && r.width > 0,
+          box: [r.left, r.top, r.right, r.bottom], text: e.innerText}};
+}})()"""
 
 NEXT_FRAMES_JS = (
     "new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))"
@@ -124,6 +134,10 @@ def test_animation_renders_in_headless_chromium(tmp_path: Path) -> None:
             sizes.append(browser.evaluate(SCENE_SIZE_JS))
             time.sleep(0.2)
         assert sizes[-1] > 2 * (STEPS - 1), "trail segments missing from the page"
+        legend = browser.evaluate(LEGEND_JS)
+        shots["legend"] = browser.screenshot()
+        # The key's swatches share the scene's colours: hidden for the colour counts.
+        browser.evaluate(f"document.getElementById('{LEGEND_ID}').style.display = 'none'")
         duration = STEPS / (1.0 / TIME_STEP)
         for name, at in (("load", 0.0), ("middle", 0.5 * duration)):
             browser.evaluate(f"viewer.animator.pause(); viewer.animator.seek({at});")
@@ -134,12 +148,17 @@ def test_animation_renders_in_headless_chromium(tmp_path: Path) -> None:
     elapsed = time.monotonic() - started
 
     SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
-    SCREENSHOT.write_bytes(shots["load"])
+    SCREENSHOT.write_bytes(shots["legend"])
     SCREENSHOT.with_name("animation_screenshot_middle.png").write_bytes(shots["middle"])
 
     assert errors == [], f"page errors: {errors}\nconsole: {console}"
+    # The key is shown, whole, inside the window, and names the target and the estimate.
+    left, top, right, bottom = legend["box"]
+    assert legend["shown"] and 0 <= left < right <= WIDTH and 0 <= top < bottom <= HEIGHT
+    assert "target (true position)" in legend["text"] and "estimated target" in legend["text"]
     masks = {}
-    for name, png in shots.items():
+    for name in ("load", "middle"):
+        png = shots[name]
         masks[name] = colour_masks(png)
         for thing, mask in masks[name].items():
             count = int(mask.sum())
