@@ -36,7 +36,8 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="override a scenario field, e.g. --set tracking.alpha=1.0, or switch a slot's "
-        "variant, e.g. --set attitude=!FixedAttitude (repeatable)",
+        "variant, e.g. --set attitude=FixedAttitude (drake-uuv variants lists them; "
+        "repeatable)",
     )
 
 

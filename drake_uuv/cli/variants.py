@@ -7,8 +7,8 @@ from drake_uuv.cli.options import ArgumentParser
 
 
 def variant_table() -> list[tuple[str, str, str, str]]:
-    """``(section, diagram system, tag, one-line description)`` of every variant, each slot's
-    default first, in the registry's order."""
+    """``(section, diagram system, variant name, one-line description)`` of every variant, each
+    slot's default first, in the registry's order."""
     from drake_uuv.diagram import SLOT_REGISTRY
     from drake_uuv.scenario import Scenario, variants
 
@@ -18,7 +18,7 @@ def variant_table() -> list[tuple[str, str, str, str]]:
         options = variants(Scenario, slot.section)
         default = type(getattr(defaults, slot.section)).__name__
         for tag in sorted(options, key=lambda name: name != default):
-            rows.append((slot.section, slot.system, f"!{tag}", summary(options[tag])))
+            rows.append((slot.section, slot.system, tag, summary(options[tag])))
     return rows
 
 
@@ -35,12 +35,13 @@ def _variants(args: argparse.Namespace) -> int:
     section = None
     for name, system, tag, line in rows:
         if name != section:
-            print(f"{name} (system {system!r}; choose with --set '{name}=!<Variant>'):")
+            print(f"{name} (system {system!r}; choose with --set {name}=<variant>):")
             section = name
             default = " (default)"
         else:
             default = ""
         print(f"  {tag.ljust(width)}  {line}{default}")
+    print("With fields of the variant (quoted for the shell): --set 'SECTION=VARIANT {FIELD: VALUE}'")
     return 0
 
 

@@ -1,6 +1,6 @@
 """Configuration: the scenario's dataclasses, one per slot variant, loaded from YAML.
 
-``load_scenario("paper", ["tracking=!LqrTracking", "tracking.max_acceleration=7"])`` loads a
+``load_scenario("paper", ["tracking=LqrTracking", "tracking.max_acceleration=7"])`` loads a
 shipped scenario (``drake_uuv/scenarios/*.yaml``) or a file, applies ``--set`` overrides and
 validates it; every error is a one-line :class:`ScenarioError` naming the field and the value.
 """

@@ -75,6 +75,6 @@ def test_python_m_runs_the_command_line_with_its_exit_status(tmp_path) -> None:
     )
     assert result.returncode == 2
     assert result.stderr.strip() == (
-        "drake-uuv: error: attitude: unknown variant !Bad (known: !TrajectoryAttitude, "
-        "!RandomAttitude, !FixedAttitude, !InformationSeeking)"
+        "drake-uuv: error: attitude: unknown variant !Bad (known: TrajectoryAttitude, "
+        "RandomAttitude, FixedAttitude, InformationSeeking)"
     )
