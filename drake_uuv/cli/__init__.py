@@ -6,7 +6,8 @@ and one line naming the field and the value, without a traceback.
 
 One module per subcommand (:mod:`~drake_uuv.cli.run`, :mod:`~drake_uuv.cli.diagram`,
 :mod:`~drake_uuv.cli.animate`, :mod:`~drake_uuv.cli.montecarlo`,
-:mod:`~drake_uuv.cli.compare`), each with its parser (``add_subcommand``) and handler; the
+:mod:`~drake_uuv.cli.compare`, :mod:`~drake_uuv.cli.variants`,
+:mod:`~drake_uuv.cli.scenarios`), each with its parser (``add_subcommand``) and handler; the
 shared options and :class:`UsageError` are in :mod:`~drake_uuv.cli.options`. The command line
 is the top layer: nothing else in the package imports it.
 """
@@ -15,7 +16,7 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 
-from drake_uuv.cli import animate, compare, diagram, montecarlo, run, variants
+from drake_uuv.cli import animate, compare, diagram, montecarlo, run, scenarios, variants
 from drake_uuv.cli.options import (
     ArgumentParser,
     UsageError,
@@ -51,6 +52,7 @@ SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     montecarlo.add_subcommand,
     compare.add_subcommand,
     variants.add_subcommand,
+    scenarios.add_subcommand,
 ]
 
 

@@ -26,7 +26,9 @@ class ArgumentParser(argparse.ArgumentParser):
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     """``--scenario``, ``--seed`` and ``--set``, shared by every subcommand."""
     parser.add_argument(
-        "--scenario", default="paper", help="shipped scenario name or YAML path (default: paper)"
+        "--scenario",
+        default="paper",
+        help="shipped scenario name (drake-uuv scenarios lists them) or YAML path (default: paper)",
     )
     parser.add_argument("--seed", type=int, default=None, help="override random_seed")
     parser.add_argument(

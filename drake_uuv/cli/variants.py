@@ -41,7 +41,7 @@ def _variants(args: argparse.Namespace) -> int:
         else:
             default = ""
         print(f"  {tag.ljust(width)}  {line}{default}")
-    print("With fields of the variant (quoted for the shell): --set 'SECTION=VARIANT {FIELD: VALUE}'")
+    print("A variant with fields, quoted for the shell: --set 'SECTION=VARIANT {FIELD: VALUE}'")
     return 0
 
 

@@ -143,6 +143,16 @@ def builtin_scenarios() -> list[str]:
     )
 
 
+# A scenario file describes itself in a comment, so that a new file needs no code edit.
+_DESCRIPTION = re.compile(r"^#\s*description:\s*(.*?)\s*$", re.MULTILINE)
+
+
+def scenario_description(name_or_path: str) -> str:
+    """The ``# description: ...`` comment of a scenario file (shipped name or path), or ''."""
+    found = _DESCRIPTION.search(resolve_scenario_path(name_or_path).read_text())
+    return found.group(1) if found else ""
+
+
 def resolve_scenario_path(name_or_path: str) -> Path:
     """A shipped scenario name (``paper``) or a path to a YAML file."""
     path = Path(name_or_path)
@@ -168,6 +178,8 @@ def load_scenario(
     path = resolve_scenario_path(name_or_path)
     try:
         data = parse_yaml(path.read_text())
+    except OSError as e:
+        raise ScenarioError(f"scenario file {str(path)!r}: cannot read it ({e.strerror})") from e
     except yaml.YAMLError as e:
         raise ScenarioError(f"scenario file {str(path)!r}: not valid YAML ({_one_line(e)})") from e
     if data is None:
