@@ -1,12 +1,17 @@
-"""What every subcommand shares: the usage error, the parser class, the common options.
+"""What every subcommand shares: the usage error, the parser class, the common options, the
+check of the output folder.
 
-The lowest module of :mod:`drake_uuv.cli`; the subcommand modules import it.
+The lowest module of :mod:`drake_uuv.cli`; the subcommand modules import it. It imports
+nothing of Drake, so that a bad option or output folder is refused before anything is loaded.
 """
 
 import argparse
-from typing import Any, NoReturn
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NoReturn
 
-from drake_uuv.scenario import Scenario, load_scenario
+if TYPE_CHECKING:
+    from drake_uuv.scenario import Scenario
 
 # A study stopped by Ctrl-C: 128 + SIGINT, as a shell reports it.
 EXIT_INTERRUPTED = 130
@@ -43,9 +48,18 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def scenario_from_args(args: argparse.Namespace) -> Scenario:
+def scenario_from_args(args: argparse.Namespace) -> "Scenario":
     """The validated scenario named by the shared options."""
+    from drake_uuv.scenario import load_scenario
+
     return load_scenario(args.scenario, args.overrides, seed=args.seed)
+
+
+def add_out_option(parser: argparse.ArgumentParser, default: str, what: str) -> None:
+    """``--out DIR``, the folder a subcommand writes ``what`` to; :func:`check_output_folder`
+    checks it before the subcommand starts."""
+    parser.add_argument("--out", default=default, help=f"{what} (default: {default})")
+    parser.set_defaults(output_folder=True)
 
 
 def add_execution_options(parser: argparse.ArgumentParser) -> None:
@@ -81,3 +95,20 @@ def execution_options(args: argparse.Namespace) -> dict[str, Any]:
         chunk_size=args.chunk_size,
         progress=not args.no_progress,
     )
+
+
+def check_output_folder(out: str) -> None:
+    """Raises :class:`UsageError` naming ``out`` and the reason if it cannot become a folder
+    this process writes into: something else than a folder in its place or in its path, or
+    a folder it may not write into (permissions, a read-only file system)."""
+    path = existing = Path(out)
+    try:
+        while not existing.exists() and not existing.is_symlink():
+            existing = existing.parent
+    except OSError as e:  # e.g. a folder on the way that may not be searched
+        raise UsageError(f"--out: cannot write to {out!r}: {e.strerror}") from e
+    it = "it" if existing == path else repr(str(existing))
+    if not existing.is_dir():
+        raise UsageError(f"--out: cannot write to {out!r}: {it} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise UsageError(f"--out: cannot write to {out!r}: {it} is not writable")
