@@ -59,7 +59,12 @@ SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
 
 def make_parser() -> argparse.ArgumentParser:
     """The ``drake-uuv`` parser with every subcommand of :data:`SUBCOMMANDS`."""
-    parser = ArgumentParser(prog="drake-uuv", description=__doc__.splitlines()[0])
+    parser = ArgumentParser(
+        prog="drake-uuv",
+        description="Range-only estimation of a target by a UUV with two sonars, as a Drake "
+        "diagram. To start: drake-uuv scenarios (the shipped scenarios, run with --scenario "
+        "NAME), drake-uuv variants (what --set SECTION=VARIANT can switch), drake-uuv run.",
+    )
     subparsers = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
     for add in SUBCOMMANDS:
         add(subparsers)

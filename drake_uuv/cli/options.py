@@ -7,6 +7,7 @@ nothing of Drake, so that a bad option or output folder is refused before anythi
 
 import argparse
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
@@ -26,6 +27,16 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         raise UsageError(message)
+
+
+def add_listing(
+    subparsers: argparse._SubParsersAction,
+    name: str,
+    summary: str,
+    handler: Callable[[argparse.Namespace], int],
+) -> None:
+    """Registers ``drake-uuv NAME``, a command without options that prints a listing."""
+    subparsers.add_parser(name, help=summary).set_defaults(handler=handler)
 
 
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:

@@ -3,7 +3,7 @@ that describes it (its ``# description:`` comment, so that a new file needs no c
 
 import argparse
 
-from drake_uuv.cli.options import ArgumentParser
+from drake_uuv.cli.options import add_listing
 
 
 def scenario_table() -> list[tuple[str, str]]:
@@ -27,7 +27,9 @@ def _scenarios(args: argparse.Namespace) -> int:
 
 def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     """Registers ``drake-uuv scenarios``."""
-    parser: ArgumentParser = subparsers.add_parser(
-        "scenarios", help="list the shipped scenarios with a one-line description"
+    add_listing(
+        subparsers,
+        "scenarios",
+        "list the shipped scenarios with a one-line description",
+        _scenarios,
     )
-    parser.set_defaults(handler=_scenarios)

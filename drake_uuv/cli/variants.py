@@ -3,7 +3,7 @@
 import argparse
 import inspect
 
-from drake_uuv.cli.options import ArgumentParser
+from drake_uuv.cli.options import add_listing
 
 
 def variant_table() -> list[tuple[str, str, str, str]]:
@@ -47,7 +47,6 @@ def _variants(args: argparse.Namespace) -> int:
 
 def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     """Registers ``drake-uuv variants``."""
-    parser: ArgumentParser = subparsers.add_parser(
-        "variants", help="list every slot's variants with a one-line description"
+    add_listing(
+        subparsers, "variants", "list every slot's variants with a one-line description", _variants
     )
-    parser.set_defaults(handler=_variants)
