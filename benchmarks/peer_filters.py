@@ -15,7 +15,7 @@ hand-over question, not the peer's), then run alone. Prints, per log, the positi
 k ≥ ``--window`` of drake_uuv's estimate (whichever estimator made the log) and of each peer,
 and the RMSE over all logs. ``ranges`` holds the first sample per sonar: use logs with f = 1.
 
-    drake-uuv run --seed 0 --set estimator=!Ekf --out out/peer/ekf-0   # … seeds 0..9
+    drake-uuv run --seed 0 --set estimator=Ekf --out out/peer/ekf-0   # … seeds 0..9
     python benchmarks/peer_filters.py out/peer/ekf-*/log.npz --noise-variance 0.01
 
 Both log layouts are read: the current keys (``p_uuv``, ``p_target``, ``q_s``, ``q_hat``,

@@ -3,7 +3,12 @@
 import argparse
 from pathlib import Path
 
-from drake_uuv.cli.options import UsageError, add_scenario_options, scenario_from_args
+from drake_uuv.cli.options import (
+    UsageError,
+    add_out_option,
+    add_scenario_options,
+    scenario_from_args,
+)
 
 
 def _animate(args: argparse.Namespace) -> int:
@@ -38,7 +43,7 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         "animate", help="simulate and write a self-contained 3-D animation (HTML)"
     )
     add_scenario_options(parser)
-    parser.add_argument("--out", default="out/paper", help="output folder (default: out/paper)")
+    add_out_option(parser, "out/paper", "output folder of animation.html")
     parser.add_argument(
         "--playback-speed", type=float, default=4.0, help="simulated seconds per second (4)"
     )

@@ -17,32 +17,34 @@ from drake_uuv.cli.options import (
     EXIT_INTERRUPTED,
     UsageError,
     add_execution_options,
+    add_out_option,
     add_scenario_options,
     execution_options,
-)
-from drake_uuv.studies import (
-    LIST,
-    BaseScenario,
-    MonteCarloError,
-    compare_groups,
-    default_studies_folder,
-    default_workers,
-    estimate_wall_time,
-    format_estimate,
-    format_group_list,
-    group_variants,
-    load_groups,
-    select_groups,
-    variant_studies,
 )
 
 
 def _compare(args: argparse.Namespace) -> int:
+    from drake_uuv.studies import (
+        LIST,
+        BaseScenario,
+        MonteCarloError,
+        compare_groups,
+        default_studies_folder,
+        default_workers,
+        estimate_wall_time,
+        format_estimate,
+        format_group_list,
+        group_variants,
+        load_groups,
+        select_groups,
+        variant_studies,
+    )
+
     out = Path(args.out)
     try:
         if args.runs < 1:  # before the runs are listed or timed
             raise MonteCarloError(f"--runs: must be ≥ 1, got {args.runs}")
-        groups = load_groups(args.studies)
+        groups = load_groups(args.studies or default_studies_folder())
         if args.groups and LIST in args.groups:
             print(format_group_list(groups, args.runs))
             return 0
@@ -90,11 +92,10 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--studies",
         type=Path,
-        default=default_studies_folder(),
+        default=None,
         metavar="DIR",
         help="folder of the study groups, a package whose __init__.py defines GROUPS "
-        "(default: the studies/ folder of the checkout drake_uuv was imported from, "
-        "%(default)s)",
+        "(default: the studies/ folder of the checkout drake_uuv was imported from)",
     )
-    parser.add_argument("--out", default="out/compare", help="output folder (default: out/compare)")
+    add_out_option(parser, "out/compare", "output folder: compare.md, compare.csv, studies")
     parser.set_defaults(handler=_compare)

@@ -3,7 +3,12 @@
 import argparse
 from pathlib import Path
 
-from drake_uuv.cli.options import UsageError, add_scenario_options, scenario_from_args
+from drake_uuv.cli.options import (
+    UsageError,
+    add_out_option,
+    add_scenario_options,
+    scenario_from_args,
+)
 
 
 def _diagram(args: argparse.Namespace) -> int:
@@ -30,7 +35,7 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     add_scenario_options(parser)
     parser.add_argument("--max-depth", type=int, default=1, help="subsystem depth to expand")
     parser.add_argument("--name", default="paper", help="file name stem (default: paper)")
-    parser.add_argument("--out", default="diagrams", help="output folder (default: diagrams)")
+    add_out_option(parser, "diagrams", "output folder")
     parser.add_argument(
         "--all-variants",
         action="store_true",

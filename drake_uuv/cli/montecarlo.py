@@ -12,14 +12,22 @@ from drake_uuv.cli.options import (
     EXIT_INTERRUPTED,
     UsageError,
     add_execution_options,
+    add_out_option,
     add_scenario_options,
     execution_options,
     scenario_from_args,
 )
-from drake_uuv.studies import MonteCarloError, Study, completed_seeds, format_summary, run_study
 
 
 def _montecarlo(args: argparse.Namespace) -> int:
+    from drake_uuv.studies import (
+        MonteCarloError,
+        Study,
+        completed_seeds,
+        format_summary,
+        run_study,
+    )
+
     scenario = scenario_from_args(args)
     out = Path(args.out)
     study = Study(name=args.scenario, scenario=scenario, runs=args.runs, out_dir=out)
@@ -44,7 +52,5 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     )
     add_scenario_options(parser)
     add_execution_options(parser)
-    parser.add_argument(
-        "--out", default="out/montecarlo", help="output folder (default: out/montecarlo)"
-    )
+    add_out_option(parser, "out/montecarlo", "output folder: runs, runs.csv, summary.json")
     parser.set_defaults(handler=_montecarlo)

@@ -1,12 +1,18 @@
-"""What every subcommand shares: the usage error, the parser class, the common options.
+"""What every subcommand shares: the usage error, the parser class, the common options, the
+check of the output folder.
 
-The lowest module of :mod:`drake_uuv.cli`; the subcommand modules import it.
+The lowest module of :mod:`drake_uuv.cli`; the subcommand modules import it. It imports
+nothing of Drake, so that a bad option or output folder is refused before anything is loaded.
 """
 
 import argparse
-from typing import Any, NoReturn
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NoReturn
 
-from drake_uuv.scenario import Scenario, load_scenario
+if TYPE_CHECKING:
+    from drake_uuv.scenario import Scenario
 
 # A study stopped by Ctrl-C: 128 + SIGINT, as a shell reports it.
 EXIT_INTERRUPTED = 130
@@ -23,10 +29,22 @@ class ArgumentParser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
+def add_listing(
+    subparsers: argparse._SubParsersAction,
+    name: str,
+    summary: str,
+    handler: Callable[[argparse.Namespace], int],
+) -> None:
+    """Registers ``drake-uuv NAME``, a command without options that prints a listing."""
+    subparsers.add_parser(name, help=summary).set_defaults(handler=handler)
+
+
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     """``--scenario``, ``--seed`` and ``--set``, shared by every subcommand."""
     parser.add_argument(
-        "--scenario", default="paper", help="shipped scenario name or YAML path (default: paper)"
+        "--scenario",
+        default="paper",
+        help="shipped scenario name (drake-uuv scenarios lists them) or YAML path (default: paper)",
     )
     parser.add_argument("--seed", type=int, default=None, help="override random_seed")
     parser.add_argument(
@@ -36,13 +54,23 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="override a scenario field, e.g. --set tracking.alpha=1.0, or switch a slot's "
-        "variant, e.g. --set attitude=!FixedAttitude (repeatable)",
+        "variant, e.g. --set attitude=FixedAttitude (drake-uuv variants lists them; "
+        "repeatable)",
     )
 
 
-def scenario_from_args(args: argparse.Namespace) -> Scenario:
+def scenario_from_args(args: argparse.Namespace) -> "Scenario":
     """The validated scenario named by the shared options."""
+    from drake_uuv.scenario import load_scenario
+
     return load_scenario(args.scenario, args.overrides, seed=args.seed)
+
+
+def add_out_option(parser: argparse.ArgumentParser, default: str, what: str) -> None:
+    """``--out DIR``, the folder a subcommand writes ``what`` to; :func:`check_output_folder`
+    checks it before the subcommand starts."""
+    parser.add_argument("--out", default=default, help=f"{what} (default: {default})")
+    parser.set_defaults(output_folder=True)
 
 
 def add_execution_options(parser: argparse.ArgumentParser) -> None:
@@ -78,3 +106,20 @@ def execution_options(args: argparse.Namespace) -> dict[str, Any]:
         chunk_size=args.chunk_size,
         progress=not args.no_progress,
     )
+
+
+def check_output_folder(out: str) -> None:
+    """Raises :class:`UsageError` naming ``out`` and the reason if it cannot become a folder
+    this process writes into: something else than a folder in its place or in its path, or
+    a folder it may not write into (permissions, a read-only file system)."""
+    path = existing = Path(out)
+    try:
+        while not existing.exists() and not existing.is_symlink():
+            existing = existing.parent
+    except OSError as e:  # e.g. a folder on the way that may not be searched
+        raise UsageError(f"--out: cannot write to {out!r}: {e.strerror}") from e
+    it = "it" if existing == path else repr(str(existing))
+    if not existing.is_dir():
+        raise UsageError(f"--out: cannot write to {out!r}: {it} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise UsageError(f"--out: cannot write to {out!r}: {it} is not writable")

@@ -4,7 +4,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from drake_uuv.cli.options import UsageError, add_scenario_options, scenario_from_args
+from drake_uuv.cli.options import (
+    UsageError,
+    add_out_option,
+    add_scenario_options,
+    scenario_from_args,
+)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -42,7 +47,7 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         "run", help="simulate one scenario and write its log, metrics, figures"
     )
     add_scenario_options(parser)
-    parser.add_argument("--out", default="out/paper", help="output folder (default: out/paper)")
+    add_out_option(parser, "out/paper", "output folder: log, metrics, figures")
     parser.add_argument(
         "--meshcat", action="store_true", help="draw the scene live in Meshcat (localhost)"
     )

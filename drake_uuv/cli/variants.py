@@ -3,12 +3,12 @@
 import argparse
 import inspect
 
-from drake_uuv.cli.options import ArgumentParser
+from drake_uuv.cli.options import add_listing
 
 
 def variant_table() -> list[tuple[str, str, str, str]]:
-    """``(section, diagram system, tag, one-line description)`` of every variant, each slot's
-    default first, in the registry's order."""
+    """``(section, diagram system, variant name, one-line description)`` of every variant, each
+    slot's default first, in the registry's order."""
     from drake_uuv.diagram import SLOT_REGISTRY
     from drake_uuv.scenario import Scenario, variants
 
@@ -18,7 +18,7 @@ def variant_table() -> list[tuple[str, str, str, str]]:
         options = variants(Scenario, slot.section)
         default = type(getattr(defaults, slot.section)).__name__
         for tag in sorted(options, key=lambda name: name != default):
-            rows.append((slot.section, slot.system, f"!{tag}", summary(options[tag])))
+            rows.append((slot.section, slot.system, tag, summary(options[tag])))
     return rows
 
 
@@ -35,18 +35,18 @@ def _variants(args: argparse.Namespace) -> int:
     section = None
     for name, system, tag, line in rows:
         if name != section:
-            print(f"{name} (system {system!r}; choose with --set '{name}=!<Variant>'):")
+            print(f"{name} (system {system!r}; choose with --set {name}=<variant>):")
             section = name
             default = " (default)"
         else:
             default = ""
         print(f"  {tag.ljust(width)}  {line}{default}")
+    print("A variant with fields, quoted for the shell: --set 'SECTION=VARIANT {FIELD: VALUE}'")
     return 0
 
 
 def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     """Registers ``drake-uuv variants``."""
-    parser: ArgumentParser = subparsers.add_parser(
-        "variants", help="list every slot's variants with a one-line description"
+    add_listing(
+        subparsers, "variants", "list every slot's variants with a one-line description", _variants
     )
-    parser.set_defaults(handler=_variants)

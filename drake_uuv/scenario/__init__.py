@@ -1,6 +1,6 @@
 """Configuration: the scenario's dataclasses, one per slot variant, loaded from YAML.
 
-``load_scenario("paper", ["tracking=!LqrTracking", "tracking.max_acceleration=7"])`` loads a
+``load_scenario("paper", ["tracking=LqrTracking", "tracking.max_acceleration=7"])`` loads a
 shipped scenario (``drake_uuv/scenarios/*.yaml``) or a file, applies ``--set`` overrides and
 validates it; every error is a one-line :class:`ScenarioError` naming the field and the value.
 """
@@ -31,6 +31,7 @@ from drake_uuv.scenario.loading import (
     load_scenario,
     parse_yaml,
     resolve_scenario_path,
+    scenario_description,
     scenario_from_dict,
     validate_scenario,
     variants,
@@ -107,6 +108,7 @@ __all__ = [
     "parse_yaml",
     "resolve_scenario_path",
     "scenario_as_dict",
+    "scenario_description",
     "scenario_from_dict",
     "validate_scenario",
     "variants",

@@ -7,10 +7,12 @@ then loaded with Drake's ``yaml_load_typed`` and validated as a whole.
 Variants. A slot section (``plant``, ``estimator``, ``attitude``, ``tracking``) takes one of
 its variant dataclasses, named by its tag: ``tracking: !LqrTracking {max_acceleration: 7}``.
 An untagged section keeps the variant of the scenario's default. On the command line,
-``--set tracking=!LqrTracking`` switches the variant and ``--set 'tracking=!LqrTracking
+``--set tracking=LqrTracking`` switches the variant and ``--set 'tracking=LqrTracking
 {max_acceleration: 7}'`` also sets fields; switching keeps the fields the two variants share
 (such as ``desired_relative_position``) and resets the others to the new variant's defaults.
-``--set tracking.alpha=1.0`` sets a field of the variant in force.
+The tag form (``--set tracking=!LqrTracking``) works too, but ``!`` is history expansion in an
+interactive bash, so messages show the bare name. ``--set tracking.alpha=1.0`` sets a field
+of the variant in force.
 """
 
 import dataclasses
@@ -103,8 +105,8 @@ def variants(schema: Any, name: str) -> dict[str, type]:
     return {member.__name__: member for member in members}
 
 
-def _tags(options: dict[str, type]) -> str:
-    return ", ".join(f"!{name}" for name in options)
+def _names(options: dict[str, type]) -> str:
+    return ", ".join(options)
 
 
 def _default_variant(schema: Any, name: str) -> type:
@@ -120,7 +122,7 @@ def _variant_of(node: Any, options: dict[str, type], default: type, name: str) -
     """The variant class a slot's value names (its tag, or the default when untagged)."""
     if isinstance(node, Tagged):
         if node.tag not in options:
-            raise ScenarioError(f"{name}: unknown variant !{node.tag} (known: {_tags(options)})")
+            raise ScenarioError(f"{name}: unknown variant !{node.tag} (known: {_names(options)})")
         return options[node.tag]
     return default
 
@@ -139,6 +141,16 @@ def builtin_scenarios() -> list[str]:
     return sorted(
         p.name.removesuffix(".yaml") for p in folder.iterdir() if p.name.endswith(".yaml")
     )
+
+
+# A scenario file describes itself in a comment, so that a new file needs no code edit.
+_DESCRIPTION = re.compile(r"^#\s*description:\s*(.*?)\s*$", re.MULTILINE)
+
+
+def scenario_description(name_or_path: str) -> str:
+    """The ``# description: ...`` comment of a scenario file (shipped name or path), or ''."""
+    found = _DESCRIPTION.search(resolve_scenario_path(name_or_path).read_text())
+    return found.group(1) if found else ""
 
 
 def resolve_scenario_path(name_or_path: str) -> Path:
@@ -166,6 +178,8 @@ def load_scenario(
     path = resolve_scenario_path(name_or_path)
     try:
         data = parse_yaml(path.read_text())
+    except OSError as e:
+        raise ScenarioError(f"scenario file {str(path)!r}: cannot read it ({e.strerror})") from e
     except yaml.YAMLError as e:
         raise ScenarioError(f"scenario file {str(path)!r}: not valid YAML ({_one_line(e)})") from e
     if data is None:
@@ -202,10 +216,6 @@ def apply_override(data: dict[str, Any], override: str) -> None:
         raise ScenarioError(f"--set: expected dotted.key=value, got {override!r}")
     key, _, text = override.partition("=")
     key = key.strip()
-    try:
-        value = parse_yaml(text)
-    except yaml.YAMLError as e:
-        raise ScenarioError(f"{key}: value is not valid YAML, got {text!r}") from e
     schema: Any = Scenario
     node = data
     parts = key.split(".")
@@ -217,8 +227,8 @@ def apply_override(data: dict[str, Any], override: str) -> None:
             known = f"known: {', '.join(fields)}"
             hint = ""
             if slot_options:
-                known = f"fields of !{schema.__name__}: {', '.join(fields) or 'none'}"
-                hint = f"; to change the variant, --set {where}=!Name ({_tags(slot_options)})"
+                known = f"fields of {schema.__name__}: {', '.join(fields) or 'none'}"
+                hint = f"; to change the variant, --set {where}=Name ({_names(slot_options)})"
             raise ScenarioError(
                 f"{key}: unknown field {part!r}"
                 + (f" in {where!r}" if where else "")
@@ -229,11 +239,12 @@ def apply_override(data: dict[str, Any], override: str) -> None:
         last = depth == len(parts) - 1
         if last:
             if options:
+                value = _variant_value(key, text, options)
                 node[part] = _switch_variant(node.get(part), value, options, key)
             elif dataclasses.is_dataclass(field_type):
                 raise ScenarioError(f"{key}: is a section; set one of its fields, got {text!r}")
             else:
-                node[part] = value
+                node[part] = _parse_value(key, text)
             return
         if not dataclasses.is_dataclass(field_type) and not options:
             raise ScenarioError(f"{key}: {'.'.join(parts[: depth + 1])!r} has no sub-fields")
@@ -249,16 +260,39 @@ def apply_override(data: dict[str, Any], override: str) -> None:
             node, schema = child, field_type
 
 
+def _parse_value(key: str, text: str) -> Any:
+    try:
+        return parse_yaml(text)
+    except yaml.YAMLError as e:
+        raise ScenarioError(f"{key}: value is not valid YAML, got {text!r}") from e
+
+
+# A variant named without its tag: ``Ekf``, ``Ekf {gate_probability: 0.99}``.
+_BARE_VARIANT = re.compile(r"\s*([A-Za-z_]\w*)(?=\s|\{|$)(.*)", re.DOTALL)
+
+
+def _variant_value(key: str, text: str, options: dict[str, type]) -> Any:
+    """The value of ``--set slot=...``: ``Name``, ``Name {fields}`` or the tag form ``!Name``,
+    as a :class:`Tagged`; anything else parsed as YAML (and refused by the caller)."""
+    bare = _BARE_VARIANT.fullmatch(text)
+    if bare is None:
+        return _parse_value(key, text)
+    name, fields = bare.groups()
+    if name not in options:
+        raise ScenarioError(f"{key}: unknown variant {name} (known: {_names(options)})")
+    return _parse_value(key, f"!{name} {fields}")
+
+
 def _switch_variant(old: Any, value: Any, options: dict[str, type], key: str) -> Tagged:
-    """``--set slot=!Variant {...}``: the new variant, keeping the fields both variants share."""
+    """``--set slot=Variant {...}``: the new variant, keeping the fields both variants share."""
     if not isinstance(value, Tagged):
         raise ScenarioError(
-            f"{key}: is a variant section; choose a variant with its tag, e.g. "
-            f"--set {key}=!{next(iter(options))} (variants: {_tags(options)}), got {value!r}"
+            f"{key}: is a variant section; choose a variant by name, e.g. "
+            f"--set {key}={next(iter(options))} (variants: {_names(options)}), got {value!r}"
         )
     variant = _variant_of(value, options, type(None), key)
     if not isinstance(value.value, dict):
-        raise ScenarioError(f"{key}: !{value.tag} takes a mapping of fields, got {value.value!r}")
+        raise ScenarioError(f"{key}: {value.tag} takes a mapping of fields, got {value.value!r}")
     names = {f.name for f in dataclasses.fields(variant)}
     kept = {name: v for name, v in _fields_of(old).items() if name in names}
     return Tagged(variant.__name__, {**kept, **value.value})

@@ -457,7 +457,7 @@ benchmarks/bench_particle_filter.py` prints the cost per count).
 
 Stone Soup's UKF and particle filter (5000 particles, its ESS resampler and MCMC regulariser;
 `benchmarks/peer_filters.py`) filter the ranges, baselines and applied accelerations of
-`drake-uuv run --seed S --set estimator=!ParticleFilter` logs, starting at step 50 from
+`drake-uuv run --seed S --set estimator=ParticleFilter` logs, starting at step 50 from
 drake_uuv's estimate and covariance of the same log; RMSE over k ≥ 200.
 
 {peer_text}

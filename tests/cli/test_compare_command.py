@@ -4,7 +4,7 @@ printed before the runs, the printed and written tables, and status 2 on bad inp
 import numpy as np
 import pytest
 
-from drake_uuv.cli import compare as compare_command
+import drake_uuv.studies as studies_package
 from drake_uuv.cli import main
 from drake_uuv.studies import StudyResult, format_group_list, load_groups
 from drake_uuv.studies import comparison as comparison_module
@@ -46,7 +46,7 @@ def test_a_folder_without_groups_exits_2_naming_it(tmp_path, capsys, no_simulati
 
 def test_without_a_checkout_the_default_folder_is_named(tmp_path, capsys, monkeypatch):
     # As if drake_uuv were installed without its repository: no studies/ beside it.
-    monkeypatch.setattr(compare_command, "default_studies_folder", lambda: tmp_path / "studies")
+    monkeypatch.setattr(studies_package, "default_studies_folder", lambda: tmp_path / "studies")
     assert main(["compare", "--group", "list"]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"drake-uuv: error: --studies: no study groups in {tmp_path}/studies ")

@@ -1,8 +1,10 @@
 """`drake-uuv run`: its outputs, and status 2 with one line on bad input."""
 
 import json
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -72,9 +74,10 @@ def test_python_m_runs_the_command_line_with_its_exit_status(tmp_path) -> None:
         capture_output=True,
         text=True,
         cwd=tmp_path,
+        env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])},
     )
     assert result.returncode == 2
     assert result.stderr.strip() == (
-        "drake-uuv: error: attitude: unknown variant !Bad (known: !TrajectoryAttitude, "
-        "!RandomAttitude, !FixedAttitude, !InformationSeeking)"
+        "drake-uuv: error: attitude: unknown variant !Bad (known: TrajectoryAttitude, "
+        "RandomAttitude, FixedAttitude, InformationSeeking)"
     )

@@ -13,10 +13,12 @@ def test_lists_every_variant_of_every_slot_with_its_default(capsys) -> None:
     for slot in SLOT_REGISTRY:
         assert f"{slot.section} (system {slot.system!r}" in out
         for tag in variants(Scenario, slot.section):
-            assert f"!{tag} " in out
+            assert f"\n  {tag} " in out
+        assert f"--set {slot.section}=<variant>" in out
+    assert "!" not in out  # the tag form is history expansion in an interactive bash
     assert out.count("(default)") == len(SLOT_REGISTRY)
     rows = variant_table()
-    assert {tag.removeprefix("!") for _, _, tag, _ in rows} == {
+    assert {name for _, _, name, _ in rows} == {
         tag for slot in SLOT_REGISTRY for tag in variants(Scenario, slot.section)
     }
 

@@ -285,7 +285,7 @@ def test_the_scenario_sets_the_bridge_of_each_gaussian_filter(tag: str) -> None:
 
 
 def test_bad_scenario_values_are_refused() -> None:
-    with pytest.raises(ScenarioError, match=r"^estimator: unknown variant !Foo \(known: !PaperKf"):
+    with pytest.raises(ScenarioError, match=r"^estimator: unknown variant !Foo \(known: PaperKf"):
         load_scenario("paper", ["estimator=!Foo"])
     with pytest.raises(ScenarioError, match=r"^estimator.linear_start_max_steps: must be ≥ 0"):
         load_scenario("paper", ["estimator=!Ekf", "estimator.linear_start_max_steps=-1"])

@@ -57,7 +57,7 @@ SUBLAYERS: dict[str, list[set[str]]] = {
     ],
     "cli": [
         {"options"},
-        {"run", "diagram", "animate", "montecarlo", "compare", "variants"},
+        {"run", "diagram", "animate", "montecarlo", "compare", "variants", "scenarios"},
         {ROOT},
         {"__main__"},
     ],

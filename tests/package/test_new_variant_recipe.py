@@ -323,4 +323,4 @@ def test_a_new_variant_is_four_files(tmp_path: Path, recipe: Recipe) -> None:
         [sys.executable, "-m", "drake_uuv.cli", "variants"], cwd=root, capture_output=True,
         text=True, timeout=120,
     )  # fmt: skip
-    assert f"!{recipe.tag} " in check.stdout
+    assert f"\n  {recipe.tag} " in check.stdout

@@ -62,9 +62,9 @@ def test_yaml_file_path(tmp_path) -> None:
     assert scenario.target == Scenario().target  # unspecified fields keep the paper's values
 
 
-def _tags(slot: str) -> str:
-    """The slot's tags as the loader lists them, regex-escaped: ``!PaperTracking, !Lqr…``."""
-    return re.escape(", ".join(f"!{tag}" for tag in variants(Scenario, slot)))
+def _names(slot: str) -> str:
+    """The slot's variants as the loader lists them, regex-escaped: ``PaperTracking, Lqr…``."""
+    return re.escape(", ".join(variants(Scenario, slot)))
 
 
 @pytest.mark.parametrize(
@@ -74,12 +74,17 @@ def _tags(slot: str) -> str:
         ("sonar.bogus=1", r"^sonar.bogus: unknown field 'bogus' in 'sonar'"),
         ("steps.x=1", r"^steps.x: 'steps' has no sub-fields"),
         ("sonar=3", r"^sonar: is a section"),
-        ("tracking=3", rf"^tracking: is a variant section; choose a variant with its tag, e.g. --set tracking=!PaperTracking \(variants: {_tags('tracking')}\), got 3"),
-        ("tracking=!Pid", rf"^tracking: unknown variant !Pid \(known: {_tags('tracking')}\)"),
-        ("tracking=!LqrTracking [1, 2]", r"^tracking: !LqrTracking takes a mapping of fields, got \[1, 2\]"),
-        ("tracking.type=lqr", rf"^tracking.type: unknown field 'type' in 'tracking' \(fields of !PaperTracking: desired_relative_position, reference_frame, max_acceleration, alpha, allow_unproven_alpha\); to change the variant, --set tracking=!Name \({_tags('tracking')}\)"),
-        ("attitude.mode=fixed", rf"^attitude.mode: unknown field 'mode' in 'attitude'.*--set attitude=!Name \({_tags('attitude')}\)"),
-        ("estimator.type=ekf", rf"^estimator.type: unknown field 'type' in 'estimator'.*--set estimator=!Name \({_tags('estimator')}\)"),
+        ("tracking=3", rf"^tracking: is a variant section; choose a variant by name, e.g. --set tracking=PaperTracking \(variants: {_names('tracking')}\), got 3$"),
+        ("tracking={alpha: 1.0}", r"^tracking: is a variant section; .*got \{'alpha': 1.0\}$"),
+        ("tracking=!Pid", rf"^tracking: unknown variant !Pid \(known: {_names('tracking')}\)$"),
+        ("tracking=Pid", rf"^tracking: unknown variant Pid \(known: {_names('tracking')}\)$"),
+        ("estimator=ekf {gate_probability: 0.99}", rf"^estimator: unknown variant ekf \(known: {_names('estimator')}\)$"),
+        ("tracking=!LqrTracking [1, 2]", r"^tracking: LqrTracking takes a mapping of fields, got \[1, 2\]$"),
+        ("tracking=LqrTracking [1, 2]", r"^tracking: LqrTracking takes a mapping of fields, got \[1, 2\]$"),
+        ("tracking=LqrTracking {max_acceleration: [1}", r"^tracking: value is not valid YAML"),
+        ("tracking.type=lqr", rf"^tracking.type: unknown field 'type' in 'tracking' \(fields of PaperTracking: desired_relative_position, reference_frame, max_acceleration, alpha, allow_unproven_alpha\); to change the variant, --set tracking=Name \({_names('tracking')}\)$"),
+        ("attitude.mode=fixed", rf"^attitude.mode: unknown field 'mode' in 'attitude'.*--set attitude=Name \({_names('attitude')}\)$"),
+        ("estimator.type=ekf", rf"^estimator.type: unknown field 'type' in 'estimator'.*--set estimator=Name \({_names('estimator')}\)$"),
         ("sonar.baseline=!Foo [1, 2, 3]", r"^sonar.baseline: takes no !tag, got !Foo"),
         ("steps=abc", r"^steps: must be an integer, got 'abc'"),
         ("steps=0", r"^steps: must be in \[1, 1e8\], got 0"),
@@ -191,10 +196,37 @@ def test_a_file_chooses_variants_by_tag(tmp_path) -> None:
         load_scenario(str(path))
 
 
-def test_every_slot_lists_its_variants_and_each_loads() -> None:
+def test_every_slot_lists_its_variants_and_each_loads_by_name_or_tag() -> None:
     for slot in SLOTS:
         options = variants(Scenario, slot)
         assert options, slot
-        for tag, kind in options.items():
-            scenario = load_scenario("paper", [f"{slot}={'!' + tag}"])
-            assert type(getattr(scenario, slot)) is kind
+        for name, kind in options.items():
+            by_name = load_scenario("paper", [f"{slot}={name}"])
+            assert type(getattr(by_name, slot)) is kind
+            assert by_name == load_scenario("paper", [f"{slot}=!{name}"])
+
+
+@pytest.mark.parametrize(
+    "override",
+    ["estimator=Ekf {gate_probability: 0.99}", "estimator=!Ekf {gate_probability: 0.99}",
+     "estimator=Ekf{gate_probability: 0.99}", " estimator = Ekf {gate_probability: 0.99} ",
+     "estimator=Ekf\n  {gate_probability: 0.99}"],
+)  # fmt: skip
+def test_a_variant_with_fields_by_name_or_tag(override: str) -> None:
+    scenario = load_scenario("paper", ["estimator.gate_probability=0.5", override])
+    assert scenario.estimator == Ekf(gate_probability=0.99)
+
+
+def test_the_bare_name_keeps_the_shared_fields_as_the_tag_does() -> None:
+    kept = ["tracking.desired_relative_position=[-5, 0, 0]", "tracking.alpha=1.0"]
+    by_name = load_scenario("paper", [*kept, "tracking=LqrTracking"])
+    assert by_name.tracking == LqrTracking(desired_relative_position=[-5.0, 0.0, 0.0])
+    assert by_name == load_scenario("paper", [*kept, "tracking=!LqrTracking"])
+
+
+def test_a_bare_name_is_a_variant_only_where_the_key_is_a_slot() -> None:
+    # A string field takes the same text as a plain string.
+    scenario = load_scenario("paper", ["estimator.noise_model=paper_printed"])
+    assert scenario.estimator.noise_model == "paper_printed"
+    with pytest.raises(ScenarioError, match=r"^estimator.noise_model: must be one of"):
+        load_scenario("paper", ["estimator.noise_model=Ekf"])

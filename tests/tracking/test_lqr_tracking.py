@@ -321,7 +321,7 @@ def test_shipped_scenario_holds_the_defaults() -> None:
         ("tracking.max_acceleration=-7", r"^tracking.max_acceleration: must be > 0, got -7"),
         ("tracking.max_acceleration=fast", r"^tracking.max_acceleration: must be a number"),
         ("tracking.feedforward=1", r"^tracking.feedforward: must be true or false"),
-        ("tracking.alpha=1", r"^tracking.alpha: unknown field 'alpha' in 'tracking' \(fields of !LqrTracking: "),
+        ("tracking.alpha=1", r"^tracking.alpha: unknown field 'alpha' in 'tracking' \(fields of LqrTracking: "),
     ],
 )  # fmt: skip
 def test_bad_tracking_fields_are_named(override: str, message: str) -> None:
