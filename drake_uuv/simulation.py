@@ -12,6 +12,7 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, System
 
+from drake_uuv.diagnostics import RunWarning, run_warnings
 from drake_uuv.diagram import UuvDiagram, make_uuv_diagram
 from drake_uuv.io import write_json_atomic, write_npz_atomic
 from drake_uuv.metrics import run_metrics
@@ -27,16 +28,20 @@ class SimulationResult:
     scenario: Scenario
     log: dict[str, np.ndarray]
     metrics: dict[str, float] = field(default_factory=dict)
+    # What the run got wrong, one line each (drake_uuv.diagnostics).
+    warnings: list[RunWarning] = field(default_factory=list)
 
     @property
     def steps(self) -> int:
         return len(self.log["k"])
 
     def save(self, out_dir: Path) -> None:
-        """Writes ``log.npz`` and ``metrics.json`` into ``out_dir`` (atomically)."""
+        """Writes ``log.npz`` and ``metrics.json`` (the metrics and a ``warnings`` list) into
+        ``out_dir`` (atomically)."""
         out_dir = Path(out_dir)
         write_npz_atomic(out_dir / "log.npz", self.log)
-        write_json_atomic(out_dir / "metrics.json", self.metrics)
+        warnings = [{"code": w.code, "message": w.message} for w in self.warnings]
+        write_json_atomic(out_dir / "metrics.json", {**self.metrics, "warnings": warnings})
 
 
 def log_from_loggers(built: UuvDiagram, context: Context, steps: int) -> dict[str, np.ndarray]:
@@ -143,7 +148,8 @@ class ClosedLoopSimulation:
             seed=scenario.random_seed,
             wall_time_s=time.perf_counter() - start,
         )
-        return SimulationResult(scenario=scenario, log=log, metrics=metrics)
+        warnings = run_warnings(log, metrics, scenario)
+        return SimulationResult(scenario=scenario, log=log, metrics=metrics, warnings=warnings)
 
 
 def simulate(scenario: Scenario) -> SimulationResult:

@@ -36,6 +36,8 @@ def _run(args: argparse.Namespace) -> int:
         f"{m['tracking_rmse']:.4f} m, mean NEES {m['nees_mean']:.2f} (k ≥ "
         f"{scenario.steady_state_start}) -> {out}/"
     )
+    for warning in result.warnings:
+        print(warning)
     if meshcat is not None and sys.stdin.isatty():
         input("The scene stays up until you press Enter. ")
     return 0

@@ -39,6 +39,7 @@ from drake_uuv.estimators.particle_cloud import ParticleCloud
 from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
 from drake_uuv.models.handover import HandoverPolicy, Phase, PhaseEvidence, Transition
 from drake_uuv.models.measurement import VALID
+from drake_uuv.primitives.signal import Signal
 from drake_uuv.scenario.estimators import RawRangeOptions
 
 
@@ -75,12 +76,24 @@ class RangeFilter(RelativeStateEstimator):
         - P_TU_prior
         - measurement_status
         - nis
+        - estimator_phase
 
+    - ``estimator_phase`` (2): this step's phase and the linear updates applied before it
+      (logged: a run that never leaves its linear start is warned of).
     - ``particle_seed`` (1, random uniform in [0, 1), only with particles): seeds the step's
       draw, resampling, regularisation and process noise.
     - The other ports are the base class's (with ``vehicle_motion: navigation``, ``p_WU``
       and ``v_WU`` in place of ``u1_W``).
     """
+
+    #: Logged beside the slot's signals: the phase of each step.
+    extra_signals = (
+        Signal(
+            "estimator_phase", "estimator", (2,),
+            "a raw-range filter's phase (0 Gaussian, 1 linear start, 2 particles) and its "
+            "linear updates so far",
+        ),
+    )  # fmt: skip
 
     def __init__(self, config: RawRangeOptions, *, setting: EstimatorSetting) -> None:
         super().__init__(config, setting=setting)
@@ -99,6 +112,7 @@ class RangeFilter(RelativeStateEstimator):
         )
         phase = Phase.LINEAR if self._policy.linear_start else Phase.RANGE
         self._phase_index = self.DeclareDiscreteState(np.array([float(phase), 0.0]))
+        self.DeclareStateOutputPort("estimator_phase", self._phase_index)
         self._cloud = None
         if self._gaussian_update is None or self._policy.particle_bridge:
             self._cloud = ParticleCloud(self, config.particle_parameters(), self._R)

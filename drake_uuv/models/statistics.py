@@ -89,3 +89,29 @@ def nees_band(dof: int = 6, runs: int = 1, level: float = 0.95) -> tuple[float, 
     tail = 0.5 * (1.0 - level)
     total = dof * runs
     return chi2_ppf(tail, total) / runs, chi2_ppf(1.0 - tail, total) / runs
+
+
+def integrated_autocorrelation_time(series) -> float:
+    """``τ = 1 + 2 Σ_{k=1}^{M} ρ_k`` of a stationary series, with Sokal's window: the smallest
+    M with ``M ≥ 5 τ(M)`` (A. Sokal, "Monte Carlo methods in statistical mechanics", 1997).
+
+    A mean of n correlated values has the variance of a mean of ``n / τ`` independent ones.
+    Returns 1 for a series too short or constant to say otherwise.
+    """
+    import numpy as np
+
+    x = np.asarray(series, dtype=float)
+    x = x[np.isfinite(x)]
+    n = x.size
+    if n < 4 or not np.ptp(x) > 0.0:
+        return 1.0
+    x = x - x.mean()
+    spectrum = np.fft.rfft(x, 2 * n)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+    rho = acf / acf[0]
+    tau = 1.0
+    for m in range(1, n):
+        tau += 2.0 * rho[m]
+        if m >= 5.0 * tau:
+            break
+    return max(tau, 1.0)

@@ -65,6 +65,7 @@ _COLUMNS: list[tuple[str, str, str, str]] = [
     ("nees_mean", "mean NEES (6)", "nees_mean", ".3g"),
     ("diverged_fraction", "diverged", "diverged_fraction", ".0%"),
     ("tracking_bounded_fraction", "tracking bounded", "tracking_bounded_fraction", ".0%"),
+    ("warned_fraction", "warned", "warned_fraction", ".0%"),
     ("relative_speed_mean", "mean relative speed [m/s]", "relative_speed_mean", ".3g"),
     ("relative_speed_peak", "peak relative speed [m/s]", "relative_speed_peak", ".3g"),
     ("acceleration_mean", "mean acceleration [m/s²]", "acceleration_mean", ".3g"),

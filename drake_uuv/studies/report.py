@@ -27,10 +27,17 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"  mean NEES {number(summary['nees_mean'])} {interval('nees_mean_ci95')} (6 if "
             "consistent)",
             f"  diverged {summary['diverged_fraction']:.1%}, tracking bounded "
-            f"{summary['tracking_bounded_fraction']:.1%}",
+            f"{summary['tracking_bounded_fraction']:.1%}" + _warned(summary),
             *_bound_lines(summary, number),
         ]
     )
+
+
+def _warned(summary: dict[str, Any]) -> str:
+    """The share of runs that warned of a broken assumption (none in an older summary)."""
+    if "warned_fraction" not in summary:
+        return ""
+    return f", warned {summary['warned_fraction']:.1%} (drake-uuv run --seed S says why)"
 
 
 def _bound_lines(summary: dict[str, Any], number: Callable[..., str]) -> list[str]:

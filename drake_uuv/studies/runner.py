@@ -112,6 +112,7 @@ def run_seeds(scenario: Scenario, seeds: Sequence[int]) -> dict[str, Any]:
             metrics["max_tracking_error"] = float(np.max(tracking[start:]))
             metrics["final_tracking_error"] = float(tracking[-1])
             metrics["failed"] = 0.0
+            metrics["warnings"] = float(len(result.warnings))
             rows.append(metrics)
             norms.append(
                 np.stack(

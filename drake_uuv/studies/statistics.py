@@ -125,6 +125,21 @@ def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
+def _fractions(every: dict[str, np.ndarray], failed: np.ndarray, runs: int) -> dict[str, Any]:
+    """The diverged, tracking-bounded and warned fractions of the runs, with 95 % intervals."""
+    counts = {
+        "diverged": int(np.sum(~(every["final_position_error"] <= DIVERGENCE_THRESHOLD))),
+        "tracking_bounded": int(np.sum(every["max_tracking_error"] < BOUNDED_TRACKING_THRESHOLD)),
+        # Runs that warned of a broken assumption (drake_uuv.diagnostics), failed ones too.
+        "warned": int(np.sum(failed | (every.get("warnings", np.zeros(runs)) > 0.0))),
+    }
+    out: dict[str, Any] = {}
+    for name, count in counts.items():
+        out[f"{name}_fraction"] = count / runs
+        out[f"{name}_fraction_ci95"] = list(wilson_interval(count, runs))
+    return out
+
+
 def summarize(
     metric_names: list[str],
     metrics: np.ndarray,
@@ -141,7 +156,9 @@ def summarize(
     estimator-health monitor stopped. ``diverged_fraction``: runs whose final position error
     exceeds :data:`DIVERGENCE_THRESHOLD` or is not finite (so failed runs count as diverged).
     ``tracking_bounded_fraction``: runs whose steady-state tracking error stays below
-    :data:`BOUNDED_TRACKING_THRESHOLD`. Each has a 95 % interval (``*_ci95``, see
+    :data:`BOUNDED_TRACKING_THRESHOLD`. ``warned_fraction``: runs that warned of a broken
+    assumption (:mod:`drake_uuv.diagnostics`; a failed run counts). Each has a 95 % interval
+    (``*_ci95``, see
     :data:`INTERVAL_METHOD`). Non-finite numbers are written as null.
 
     Bounds (:data:`BOUND_METHOD`), each as ``*_position_rmse`` and ``*_velocity_rmse``:
@@ -188,12 +205,7 @@ def summarize(
             nees, lambda x: np.mean(x, axis=-1), BOOTSTRAP_RESAMPLES, seed=BOOTSTRAP_SEED
         )
         summary["nees_mean_ci95"] = [_finite(v) for v in interval]
-        diverged = int(np.sum(~(every["final_position_error"] <= DIVERGENCE_THRESHOLD)))
-        summary["diverged_fraction"] = diverged / runs
-        summary["diverged_fraction_ci95"] = list(wilson_interval(diverged, runs))
-        bounded = int(np.sum(every["max_tracking_error"] < BOUNDED_TRACKING_THRESHOLD))
-        summary["tracking_bounded_fraction"] = bounded / runs
-        summary["tracking_bounded_fraction_ci95"] = list(wilson_interval(bounded, runs))
+        summary.update(_fractions(every, failed, runs))
         for name in ("relative_speed", "acceleration"):
             summary[f"{name}_mean"] = _finite(float(np.mean(column[f"{name}_mean"])))
             peaks = column[f"{name}_peak"]

@@ -37,7 +37,12 @@ LAYERS: list[set[str]] = [
         "visualization.live_visualizer",
     },
     {"diagram", "monitor", "signals"},  # the closed loop
-    {"simulation", "metrics", ROOT},  # runs of it (the facade exports ClosedLoopSimulation)
+    {
+        "simulation",
+        "metrics",
+        "diagnostics",
+        ROOT,
+    },  # runs of it (the facade exports ClosedLoopSimulation)
     {"analysis", "studies", "visualization"},  # many runs, pictures
     {"cli"},  # the command line, on top of everything
 ]

@@ -30,6 +30,13 @@ def test_without_bounds_six_lines():
     ]
 
 
+def test_the_warned_runs_are_counted_when_the_summary_has_them():
+    line = format_summary({**SUMMARY, "warned_fraction": 0.15}).splitlines()[5]
+    assert line == (
+        "  diverged 5.0%, tracking bounded 100.0%, warned 15.0% (drake-uuv run --seed S says why)"
+    )
+
+
 def test_bound_lines_show_what_the_summary_has():
     summary = {
         **SUMMARY,
