@@ -61,7 +61,7 @@ class RangeFilter(RelativeStateEstimator):
         input_ports:
         - range_samples
         - sonar_status
-        - R_WB
+        - R_WB_nav
         - u1_W
         - particle_seed (with particles)
         output_ports:
@@ -74,8 +74,8 @@ class RangeFilter(RelativeStateEstimator):
 
     - ``particle_seed`` (1, random uniform in [0, 1), only with particles): seeds the step's
       draw, resampling, regularisation and process noise.
-    - The other ports are the base class's (with ``vehicle_motion: navigation``, ``p_WU``
-      and ``v_WU`` in place of ``u1_W``).
+    - The other ports are the base class's (with ``vehicle_motion: navigation``, ``p_WU_nav``
+      and ``v_WU_nav`` in place of ``u1_W``).
     """
 
     def __init__(self, config: RawRangeOptions, *, setting: EstimatorSetting) -> None:
