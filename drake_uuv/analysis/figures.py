@@ -11,6 +11,9 @@ and its scenario, and written as PNG and SVG by :func:`save_figure`:
 * ``excitation``: λ_min and λ_max of Σ_{m=k}^{k+N−1} q_s q_sᵀ (paper eq. 10), N from
   ``analysis.pe_window``;
 * ``nees``: NEES against k with the χ²(6) 95 % band;
+* ``navigation`` (a navigation other than ``!PerfectNavigation``): the attitude, velocity
+  and position errors of what the vehicle believes of itself against k
+  (:mod:`~drake_uuv.analysis.navigation_figures`);
 * ``bands`` (Monte Carlo): median and 5–95 % of the errors against k over runs, and the mean
   NEES over runs with its χ²(6M)/M band; with the Monte Carlo PCRLB, the RMS error over runs
   beside it.
@@ -29,12 +32,13 @@ import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter  # noqa: E402
 
+from drake_uuv.analysis.navigation_figures import navigation_figure  # noqa: E402
 from drake_uuv.analysis.stats import nees_band  # noqa: E402
 from drake_uuv.analysis.vehicle_figures import attitude_tracking_figure, thrust_figure  # noqa: E402
 from drake_uuv.io import save_figure_atomic  # noqa: E402
 from drake_uuv.metrics import bound_covariances, errors  # noqa: E402
 from drake_uuv.models.information import excitation_eigenvalues  # noqa: E402
-from drake_uuv.scenario import Scenario, describe  # noqa: E402
+from drake_uuv.scenario import PerfectNavigation, Scenario, describe  # noqa: E402
 
 ESTIMATION_COLOR = "tab:red"
 TRACKING_COLOR = "tab:blue"
@@ -289,15 +293,17 @@ def nees_figure(log: dict[str, np.ndarray], scenario: Scenario) -> Figure:
 
 
 def run_figures(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, Figure]:
-    """The figures of one run, by file stem: the four of every run, and for a vehicle that
-    logs its commanded attitude and thrusts (``!HoveringAuv``) its attitude tracking and
-    thrusts against their limits."""
+    """The figures of one run, by file stem: the four of every run, the navigation's errors
+    unless it is perfect, and for a vehicle that logs its commanded attitude and thrusts
+    (``!HoveringAuv``) its attitude tracking and thrusts against their limits."""
     figures = {
         "errors": error_figure(log, scenario),
         "trajectory": trajectory_figure(log, scenario),
         "excitation": excitation_figure(log, scenario),
         "nees": nees_figure(log, scenario),
     }
+    if not isinstance(scenario.navigation, PerfectNavigation):
+        figures["navigation"] = navigation_figure(log, scenario)
     if "R_WB_command" in log:
         figures["attitude_tracking"] = attitude_tracking_figure(log)
     if "thrust" in log:
