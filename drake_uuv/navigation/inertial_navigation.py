@@ -117,9 +117,12 @@ class InertialNavigationSystem(LeafSystem):
         )  # fmt: skip
         velocity_error = self._velocity_error.ticket()
         dead_reckoning = self.discrete_state_ticket(self._dead_reckoning_index)
+        self._position_error = self._declare_cache(
+            "position error", self._calc_position_error, velocity_error, dead_reckoning
+        )
         self.DeclareVectorOutputPort(
             "p_WU_nav", 3, self._calc_position,
-            {velocity_error, self._p_port.ticket(), dead_reckoning},
+            {self._position_error.ticket(), self._p_port.ticket()},
         )  # fmt: skip
         self.DeclareVectorOutputPort(
             "v_WU_nav", 3, self._calc_velocity, {velocity_error, self._v_port.ticket()}
@@ -151,7 +154,7 @@ class InertialNavigationSystem(LeafSystem):
         delta = self._attitude_sigma * self._noise_port.Eval(context)[:3]
         delta[2] += context.get_discrete_state(self._bias_index).get_value()[0]
         rpy = RollPitchYaw(RotationMatrix(R)).vector()
-        value.set_value(RotationMatrix(RollPitchYaw(rpy + delta)).matrix())
+        value.set_value(RollPitchYaw(rpy + delta).ToRotationMatrix().matrix())
 
     def _calc_velocity_error(self, context: Context, value: AbstractValue) -> None:
         """``e_v = R_WB_nav (R_WBᵀ v_WU + b_v + n_v) − v_WU`` (3)."""
@@ -171,21 +174,21 @@ class InertialNavigationSystem(LeafSystem):
         b_v = context.get_discrete_state(self._bias_index).get_value()[1:]
         return b_v + self._velocity_sigma * self._noise_port.Eval(context)[3:]
 
-    def _position_error(self, context: Context) -> np.ndarray:
-        """``e_p(k)``: the trapezoid step from ``e_p(k−1)``, or 0 at k = 0."""
+    def _calc_position_error(self, context: Context, value: AbstractValue) -> None:
+        """``e_p(k)`` (3): the trapezoid step from ``e_p(k−1)``, or 0 at k = 0."""
         state = context.get_discrete_state(self._dead_reckoning_index).get_value()
         if state[6] == 0.0:
-            return _ZERO3
-        return state[:3] + self._half_step * (state[3:6] + self._velocity_error.Eval(context))
+            value.set_value(_ZERO3)
+            return
+        e_v = self._velocity_error.Eval(context)
+        value.set_value(state[:3] + self._half_step * (state[3:6] + e_v))
 
     def _dead_reckon(self, context: Context, discrete_state: DiscreteValues) -> None:
-        e_v = self._velocity_error.Eval(context)
-        discrete_state.set_value(
-            self._dead_reckoning_index, np.concatenate([self._position_error(context), e_v, [1.0]])
-        )
+        e_p, e_v = self._position_error.Eval(context), self._velocity_error.Eval(context)
+        discrete_state.set_value(self._dead_reckoning_index, np.concatenate([e_p, e_v, [1.0]]))
 
     def _calc_position(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._p_port.Eval(context) + self._position_error(context))
+        output.set_value(self._p_port.Eval(context) + self._position_error.Eval(context))
 
     def _calc_velocity(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._v_port.Eval(context) + self._velocity_error.Eval(context))
