@@ -54,6 +54,40 @@ def _body_velocity_error(log: dict[str, np.ndarray]) -> np.ndarray:
     return np.einsum("kji,kj->ki", log["R_WB"], log["v_WU_nav"] - log["v_WU"])
 
 
+# ---------------------------------------------------------------- who reads the navigation
+
+
+@pytest.mark.parametrize("motion", ["commanded", "navigation"])
+def test_the_vehicles_own_systems_read_the_navigation_and_the_sonar_the_truth(motion) -> None:
+    scenario = load_scenario(
+        "paper", ["navigation=!InertialNavigation", f"estimator.vehicle_motion={motion}"]
+    )
+    built = make_uuv_diagram(scenario, log=False)
+    owner = {id(system): name for name, system in built.systems.items()}
+    read: dict[str, dict[str, str]] = {}
+    for (reader, port), (producer, _) in built.diagram.connection_map().items():
+        if id(reader) in owner and id(producer) in owner:
+            name = reader.get_input_port(port).get_name()
+            read.setdefault(owner[id(reader)], {})[name] = owner[id(producer)]
+    for name in ("estimator", "attitude_generator", "tracking_controller"):
+        assert "uuv" not in read[name].values(), (name, read[name])
+        assert read[name]["R_WB_nav"] == "navigation"
+    if motion == "navigation":
+        assert read["estimator"]["p_WU_nav"] == read["estimator"]["v_WU_nav"] == "navigation"
+    assert read["sonar"]["R_WB"] == read["sonar"]["p_WU"] == "uuv"
+    assert read["navigation"] == {"p_WU": "uuv", "v_WU": "uuv", "R_WB": "uuv"}
+
+
+def test_the_tracking_law_applies_its_command_with_the_navigated_attitude() -> None:
+    """``u1_W = R_WB_nav u1_B``: the acceleration the vehicle believes it applies, which is
+    not the one it applies with its true attitude."""
+    log = _log(LQR, _inertial((1, 1, 1), 1))
+    believed = np.einsum("kij,kj->ki", log["R_WB_nav"], log["u1_B"])
+    assert_allclose(log["u1_W"], believed, rtol=0, atol=1e-12)
+    applied = np.einsum("kij,kj->ki", log["R_WB"], log["u1_B"])
+    assert np.max(np.abs(applied - believed)) > 1e-3
+
+
 # ------------------------------------------------------------------------------ exactness
 
 
