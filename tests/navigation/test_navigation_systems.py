@@ -28,9 +28,6 @@ V = np.array([0.4, -0.25, 0.1])
 RPY = np.array([0.3, -0.4, 2.5])
 NOISE = np.array([0.7, -1.3, 0.4, -0.2, 1.1, 0.9])
 BIAS = np.array([1.4, -0.6, 0.3, -1.8])
-ZERO = InertialNavigation(
-    attitude_noise_deg=[0.0, 0.0, 0.0], heading_bias_deg=0.0, velocity_noise=0.0, velocity_bias=0.0
-)
 
 
 def _rx(a: float) -> np.ndarray:
@@ -73,6 +70,19 @@ def _initialized(system, **inputs) -> tuple[Simulator, object]:
 
 def _truth(**noise) -> dict[str, np.ndarray]:
     return dict(p_WU=P, v_WU=V, R_WB=R.ravel(), **noise)
+
+
+def _inertial(
+    attitude: list[float], heading: float, noise: float, bias: float
+) -> tuple[InertialNavigationSystem, Simulator, object]:
+    """The inertial navigation of these σ, at the truth with the draws ``NOISE`` and
+    ``BIAS``, initialized."""
+    config = InertialNavigation(
+        attitude_noise_deg=attitude, heading_bias_deg=heading, velocity_noise=noise,
+        velocity_bias=bias,
+    )  # fmt: skip
+    system = InertialNavigationSystem(config, setting=SETTING)
+    return system, *_initialized(system, **_truth(navigation_noise=NOISE, navigation_bias=BIAS))
 
 
 # ---------------------------------------------------------------------------- the ports
@@ -125,10 +135,7 @@ def test_perfect_navigation_is_the_identity_bit_for_bit() -> None:
 
 
 def test_inertial_navigation_with_every_sigma_zero_is_the_truth_bit_for_bit() -> None:
-    system = InertialNavigationSystem(ZERO, setting=SETTING)
-    simulator, context = _initialized(
-        system, **_truth(navigation_noise=NOISE, navigation_bias=BIAS)
-    )
+    system, simulator, context = _inertial([0.0, 0.0, 0.0], 0.0, 0.0, 0.0)
     for _ in range(3):  # k = 0 and two steps of dead reckoning
         outputs = _outputs(system, context)
         np.testing.assert_array_equal(outputs["p_WU_nav"], P)
@@ -140,12 +147,7 @@ def test_inertial_navigation_with_every_sigma_zero_is_the_truth_bit_for_bit() ->
 def test_one_step_is_the_models_closed_form() -> None:
     """Against the model written out: Drake's roll-pitch-yaw as ``Rz Ry Rx`` of the angles
     plus their noise and the heading bias, the DVL in the body frame."""
-    config = InertialNavigation(
-        attitude_noise_deg=[0.5, 0.8, 2.0], heading_bias_deg=3.0, velocity_noise=0.02,
-        velocity_bias=0.01,
-    )  # fmt: skip
-    system = InertialNavigationSystem(config, setting=SETTING)
-    _, context = _initialized(system, **_truth(navigation_noise=NOISE, navigation_bias=BIAS))
+    system, _, context = _inertial([0.5, 0.8, 2.0], 3.0, 0.02, 0.01)
     heading, b_v = system.latched_bias(context)
     assert heading == math.radians(3.0) * BIAS[0]
     assert_allclose(b_v, 0.01 * BIAS[1:], rtol=0, atol=0)
@@ -159,12 +161,7 @@ def test_one_step_is_the_models_closed_form() -> None:
 
 
 def test_the_heading_bias_alone_turns_the_frame_and_the_velocity_about_world_z() -> None:
-    config = InertialNavigation(
-        attitude_noise_deg=[0.0, 0.0, 0.0], heading_bias_deg=5.0, velocity_noise=0.0,
-        velocity_bias=0.0,
-    )  # fmt: skip
-    system = InertialNavigationSystem(config, setting=SETTING)
-    _, context = _initialized(system, **_truth(navigation_noise=NOISE, navigation_bias=BIAS))
+    system, _, context = _inertial([0.0, 0.0, 0.0], 5.0, 0.0, 0.0)
     b = math.radians(5.0) * BIAS[0]
     outputs = _outputs(system, context)
     assert_allclose(outputs["R_WB_nav"].reshape(3, 3) @ R.T, _rz(b), rtol=0, atol=1e-15)
@@ -174,10 +171,7 @@ def test_the_heading_bias_alone_turns_the_frame_and_the_velocity_about_world_z()
 def test_dead_reckoning_integrates_a_constant_velocity_error() -> None:
     """With constant inputs the velocity error is constant, and its trapezoid integral is
     ``e_p(k) = k t e_v``."""
-    system = InertialNavigationSystem(InertialNavigation(), setting=SETTING)
-    simulator, context = _initialized(
-        system, **_truth(navigation_noise=NOISE, navigation_bias=BIAS)
-    )
+    system, simulator, context = _inertial([0.5, 0.5, 2.0], 2.0, 0.01, 0.005)
     e_v = system.GetOutputPort("v_WU_nav").Eval(context) - V
     assert np.all(np.abs(e_v) > 1e-4)
     for k in range(6):
@@ -188,10 +182,7 @@ def test_dead_reckoning_integrates_a_constant_velocity_error() -> None:
 
 
 def test_the_bias_is_read_at_initialization_only() -> None:
-    system = InertialNavigationSystem(InertialNavigation(), setting=SETTING)
-    simulator, context = _initialized(
-        system, **_truth(navigation_noise=NOISE, navigation_bias=BIAS)
-    )
+    system, simulator, context = _inertial([0.5, 0.5, 2.0], 2.0, 0.01, 0.005)
     before = system.latched_bias(context)
     system.GetInputPort("navigation_bias").FixValue(context, -BIAS)
     simulator.AdvanceTo(3 * T)
