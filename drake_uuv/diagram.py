@@ -26,6 +26,8 @@ from drake_uuv.attitude import make_attitude_generator
 from drake_uuv.attitude.factory import ATTITUDE_GENERATORS
 from drake_uuv.estimators import make_estimator
 from drake_uuv.estimators.factory import ESTIMATORS
+from drake_uuv.navigation import make_navigation
+from drake_uuv.navigation.factory import NAVIGATIONS
 from drake_uuv.plants import TargetRandomWalk, make_plant
 from drake_uuv.plants.factory import PLANTS
 from drake_uuv.primitives import random_inputs
@@ -58,12 +60,18 @@ class Slot:
 #: its factory builds the variant's system with.
 SLOT_REGISTRY: tuple[Slot, ...] = (
     Slot("plant", "uuv", PLANTS, make_plant),
+    Slot("navigation", "navigation", NAVIGATIONS, make_navigation),
     Slot("estimator", "estimator", ESTIMATORS, make_estimator),
     Slot("attitude", "attitude_generator", ATTITUDE_GENERATORS, make_attitude_generator),
     Slot("tracking", "tracking_controller", TRACKING_CONTROLLERS, make_tracking_controller),
 )
 #: Every system of the loop by its name in the diagram, in the order the builder adds them.
-SYSTEM_NAMES = ("uuv", "target", "sonar", "estimator", "attitude_generator", "tracking_controller")
+SYSTEM_NAMES = (
+    "uuv", "navigation", "target", "sonar", "estimator", "attitude_generator",
+    "tracking_controller",
+)  # fmt: skip
+#: The system whose random sources are seeded last (see :func:`make_uuv_diagram`).
+SEEDED_LAST = "navigation"
 
 
 @dataclass
@@ -111,6 +119,7 @@ def make_systems(
             raise ValueError(f"systems[{name!r}]: must be a Drake System, got {system!r}")
     makers: dict[str, Callable[[], System]] = {
         "uuv": lambda: make_plant(scenario),
+        "navigation": lambda: make_navigation(scenario),
         "target": lambda: TargetRandomWalk(scenario.target, time_step=scenario.time_step),
         "sonar": lambda: DualSonar(
             scenario.sonar,
@@ -134,18 +143,20 @@ def make_uuv_diagram(
 ) -> UuvDiagram:
     """Builds the paper's closed loop from a validated scenario.
 
-    Systems: ``uuv`` (the plant slot's variant), ``target``, ``sonar``, ``estimator``,
-    ``attitude_generator`` and ``tracking_controller`` (the other slots). Each input port is
-    connected to the output port of the same name (the names are
+    Systems: ``uuv`` (the plant slot's variant), ``navigation``, ``target``, ``sonar``,
+    ``estimator``, ``attitude_generator`` and ``tracking_controller`` (the other slots). Each
+    input port is connected to the output port of the same name (the names are
     :data:`drake_uuv.signals.SIGNALS`); each random input port gets a named, seeded
     ``RandomSource`` (named like the port) followed by a ``ZeroOrderHold`` (``<name>_hold``)
     so that publishes and updates of one step see the same draw: Drake's ``RandomSource`` draws
     its next sample in an *unrestricted* update, which the Simulator runs before the same
     tick's discrete updates, so a system reading the source directly would see draw n at the
     tick's publish (the loggers) and draw n + 1 in its discrete updates (the plant, the
-    filter), and the log would not hold the measurement the filter used. Loggers are
-    ``log_<name>`` for each logged signal, sampled once per step so column k holds the value at
-    step k, before that step's update.
+    filter), and the log would not hold the measurement the filter used. The sources of
+    :data:`SEEDED_LAST` (the navigation) are added after all others, so a seed's other draws
+    do not depend on the navigation's variant. Loggers are ``log_<name>`` for each logged
+    signal, sampled once per step so column k holds the value at step k, before that step's
+    update.
 
     ``systems`` maps names of the loop's systems (:data:`SYSTEM_NAMES`) to systems of your
     own, used instead of the scenario's: e.g. ``systems={"estimator": MyEstimator()}`` with
@@ -173,7 +184,10 @@ def make_uuv_diagram(
 
     producers = _producers(systems)
     noise = []
-    for name, system in readers.items():
+    # Drake seeds the sources in the order they are added, each from the same generator: the
+    # navigation's come last so that a seed gives the target, the sonars and the attitude the
+    # same draws whatever the navigation (its cost is measured on the same run).
+    for name, system in sorted(readers.items(), key=lambda item: item[0] == SEEDED_LAST):
         random = random_inputs(system)
         for i in range(system.num_input_ports()):
             port = system.get_input_port(i)

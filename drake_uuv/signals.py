@@ -11,7 +11,9 @@ contract, checked when the diagram is built).
 Frames (Drake's monogram notation): W world (z up), B the vehicle's body, U its body origin
 (the midpoint of the two sonars), T the target. ``p_WU`` is the position of U in W, ``R_WB``
 the attitude (body to world), ``x_TU`` the relative state ``[q, ϑ]`` of U from T in W, with
-``q = p_WU − p_WT`` and ``ϑ = v_WU − v_WT`` (the paper's Υ).
+``q = p_WU − p_WT`` and ``ϑ = v_WU − v_WT`` (the paper's Υ). The plant's ``p_WU``, ``v_WU``,
+``R_WB`` are the truth, read by the sonar, the navigation, the metrics and the figures; the
+vehicle's own systems (estimator, attitude, tracking) read the navigation's ``*_nav``.
 """
 
 from pydrake.systems.framework import System
@@ -23,6 +25,10 @@ SIGNALS: tuple[Signal, ...] = (
     Signal("p_WU", "uuv", (3,), "position of the vehicle's body origin U in W [m]"),
     Signal("v_WU", "uuv", (3,), "velocity of U in W [m/s]"),
     Signal("R_WB", "uuv", (3, 3), "attitude, body to world (row-major on the port)"),
+    # The navigation slot (system "navigation"): what the vehicle believes of itself.
+    Signal("p_WU_nav", "navigation", (3,), "navigated position of U in W [m]"),
+    Signal("v_WU_nav", "navigation", (3,), "navigated velocity of U in W [m/s]"),
+    Signal("R_WB_nav", "navigation", (3, 3), "navigated attitude, body to world"),
     # The target.
     Signal("p_WT", "target", (3,), "position of the target in W [m]"),
     Signal("v_WT", "target", (3,), "velocity of the target in W [m/s]"),
@@ -70,7 +76,9 @@ SIGNALS: tuple[Signal, ...] = (
     Signal("R_WB_plan", "attitude_generator", (2, 3, 3), "planned R(k+1), R(k+2)", logged=False),
     # The tracking slot.
     Signal("u1_B", "tracking_controller", (3,), "the paper's u1: acceleration command, B [m/s²]"),
-    Signal("u1_W", "tracking_controller", (3,), "u1 in W, R_WB u1_B: the filter's input [m/s²]"),
+    Signal(
+        "u1_W", "tracking_controller", (3,), "u1 in W, R_WB_nav u1_B: the filter's input [m/s²]"
+    ),  # fmt: skip
 )
 
 #: Signals by name.

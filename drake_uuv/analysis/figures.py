@@ -14,6 +14,9 @@ written to:
 * :func:`excitation_figure`: λ_min and λ_max of Σ_{m=k}^{k+N−1} q_s q_sᵀ (paper eq. 10), N
   from ``analysis.pe_window``;
 * :func:`nees_figure`: NEES against k with the χ²(6) 95 % band;
+* :func:`~drake_uuv.analysis.navigation_figures.navigation_figure` (a navigation other than
+  ``!PerfectNavigation``): the attitude, velocity and position errors of what the vehicle
+  believes of itself against k;
 * :func:`band_figure` (Monte Carlo): median and 5–95 % of the errors against k over runs, and
   the mean NEES over runs with its χ²(6M)/M band; with the Monte Carlo PCRLB, the RMS error over
   runs beside it.

@@ -30,8 +30,9 @@ from drake_uuv.analysis.figures import (
     save_figure,
     trajectory_figure,
 )
+from drake_uuv.analysis.navigation_figures import navigation_figure
 from drake_uuv.analysis.vehicle_figures import attitude_tracking_figure, thrust_figure
-from drake_uuv.scenario import Scenario
+from drake_uuv.scenario import PerfectNavigation, Scenario
 
 Log = Mapping[str, np.ndarray]
 
@@ -49,9 +50,9 @@ __all__ = [
 class RunFigure:
     """A figure of one run, written as ``<out>/<folder>/<name>.<format>`` for each format.
 
-    ``draw(log, scenario)`` makes it; a run whose log lacks any of ``needs`` does not get it.
-    ``example`` is a list of ``--set`` overrides of the paper scenario whose runs log every
-    signal of ``needs``: the tests draw the figure from such a run.
+    ``draw(log, scenario)`` makes it; a run whose log lacks any of ``needs``, or whose
+    scenario ``when`` refuses, does not get it. ``example`` is a list of ``--set`` overrides of
+    the paper scenario whose runs get it: the tests draw the figure from such a run.
     """
 
     name: str
@@ -61,9 +62,12 @@ class RunFigure:
     example: tuple[str, ...] = ()
     folder: str = "figures"
     formats: tuple[str, ...] = FORMATS
+    when: Callable[[Scenario], bool] | None = None
 
-    def applies(self, log: Log) -> bool:
-        """Whether ``log`` has every signal this figure needs."""
+    def applies(self, log: Log, scenario: Scenario | None = None) -> bool:
+        """Whether ``log`` has every signal this figure needs (and ``scenario`` wants it)."""
+        if self.when is not None and scenario is not None and not self.when(scenario):
+            return False
         return all(key in log for key in self.needs)
 
 
@@ -110,6 +114,14 @@ RUN_FIGURES: tuple[RunFigure, ...] = (
         example=_HOVERING,
     ),
     RunFigure(
+        "navigation_errors",
+        navigation_figure,
+        "what the vehicle believes of its attitude, velocity and position, less the truth",
+        needs=("p_WU_nav", "v_WU_nav", "R_WB_nav"),
+        example=("navigation=InertialNavigation", "tracking=LqrTracking"),
+        when=lambda scenario: not isinstance(scenario.navigation, PerfectNavigation),
+    ),
+    RunFigure(
         "vehicle_thrusts",
         thrust_figure,
         "thrusts against their limits",
@@ -137,7 +149,7 @@ def write_run_figures(
     """
     paths: list[Path] = []
     for entry in RUN_FIGURES:
-        if entry.applies(log):
+        if entry.applies(log, scenario):
             stem = Path(out) / entry.folder / entry.name
             paths += save_figure(entry.draw(log, scenario), stem, formats or entry.formats)
     return paths

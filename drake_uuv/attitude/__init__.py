@@ -1,10 +1,10 @@
 """Attitude generators: the paper's Algorithms 1 and 2 and an information-seeking planner.
 
-Contract of the slot (system ``attitude_generator``): input ``R_WB``, and any other signal
-it needs by name (a random ``rotation_noise`` for Algorithm 1, the filtered estimate for the
-information-seeking planner); outputs ``u2_W`` (the
-paper's u2, world frame, so that ``R(k+1) = Exp(u2 t) R(k)``) and ``R_WB_plan`` (the planned
-``R(k+1)``, ``R(k+2)``). See :mod:`drake_uuv.signals`. Each system is built as
+Contract of the slot (system ``attitude_generator``): input ``R_WB_nav`` (the navigated
+attitude), and any other signal it needs by name (a random ``rotation_noise`` for Algorithm 1,
+the filtered estimate for the information-seeking planner); outputs ``u2_W`` (the paper's u2,
+world frame, so that ``R(k+1) = Exp(u2 t) R(k)``) and ``R_WB_plan`` (the planned ``R(k+1)``,
+``R(k+2)``). See :mod:`drake_uuv.signals`. Each system is built as
 ``cls(config, setting=AttitudeSetting(...))`` (:class:`~drake_uuv.attitude.base.AttitudeSetting`).
 """
 

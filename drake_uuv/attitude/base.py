@@ -88,7 +88,8 @@ class AttitudeGenerator(LeafSystem):
 
     Common ports:
 
-    - input ``R_WB`` (9, row-major): the current attitude ``R(k)``.
+    - input ``R_WB_nav`` (9, row-major): the current attitude ``R(k)`` as the navigation
+      knows it: the command turns the navigated attitude onto ``R̄(k)``.
     - output ``u2_W`` (3): the angular velocity command ``u2`` [rad/s], world frame.
     - output ``R_WB_plan`` (18): the planned ``R(k+1)`` and ``R(k+2)``, each row-major.
     """
@@ -97,7 +98,7 @@ class AttitudeGenerator(LeafSystem):
         super().__init__()
         self._time_step = setting.time_step
         self._max_rate = max_angular_rate
-        self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
 
     def _declare_outputs(self) -> None:
         """Call at the end of a subclass ``__init__``, after its own input ports."""

@@ -14,7 +14,7 @@ class FixedAttitudeGenerator(AttitudeGenerator):
 
         name: FixedAttitudeGenerator
         input_ports:
-        - R_WB
+        - R_WB_nav
         output_ports:
         - u2_W
         - R_WB_plan

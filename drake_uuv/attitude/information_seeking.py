@@ -64,14 +64,14 @@ class InformationSeekingAttitude(LeafSystem):
 
         name: InformationSeekingAttitude
         input_ports:
-        - R_WB
+        - R_WB_nav
         - x_TU_hat
         - P_TU
         output_ports:
         - u2_W
         - R_WB_plan
 
-    - ``R_WB`` (9, row-major): the current attitude ``R(k)``.
+    - ``R_WB_nav`` (9, row-major): the current attitude ``R(k)``, as the navigation knows it.
     - ``x_TU_hat`` (6): the filtered relative state ``[q̂, ϑ̂]`` at k (world frame,
       ``q = p_WU − p_WT``).
     - ``P_TU`` (36): its covariance ``P(k|k)``, row-major.
@@ -95,7 +95,7 @@ class InformationSeekingAttitude(LeafSystem):
         self._planner = planner
         self._time_step = planner.time_step
         self._history = planner.history_length
-        self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
         self._estimate_port = self.DeclareVectorInputPort("x_TU_hat", 6)
         self._covariance_port = self.DeclareVectorInputPort("P_TU", 36)
         self._history_index = self.DeclareDiscreteState(3 * self._history + 1)

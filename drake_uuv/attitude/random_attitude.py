@@ -22,7 +22,7 @@ class RandomAttitudeGenerator(AttitudeGenerator):
 
         name: RandomAttitudeGenerator
         input_ports:
-        - R_WB
+        - R_WB_nav
         - rotation_noise
         output_ports:
         - u2_W

@@ -22,7 +22,7 @@ class TrajectoryAttitudeGenerator(AttitudeGenerator):
 
         name: TrajectoryAttitudeGenerator
         input_ports:
-        - R_WB
+        - R_WB_nav
         output_ports:
         - u2_W
         - R_WB_plan

@@ -3,11 +3,11 @@
 Contract of the slot (system ``estimator``): a
 :class:`~drake_uuv.estimators.base.RelativeStateEstimator`, built as ``cls(config,
 setting=EstimatorSetting(...))``. It reads the sonar's ranges (``range_samples``,
-``sonar_status``), the attitude ``R_WB`` (for the world baseline) and the vehicle's own
-motion (``u1_W``, or ``p_WU`` and ``v_WU``), and outputs ``x_TU_hat``/``P_TU`` (the filtered
-estimate at step k, a direct feedthrough of the ranges only), ``x_TU_prior``/``P_TU_prior``
-(the prediction, state only), ``measurement_status`` and ``nis``. See
-:mod:`drake_uuv.estimators.base` for the hooks a variant supplies and :mod:`drake_uuv.signals`
+``sonar_status``), the attitude ``R_WB_nav`` (for the world baseline) and the vehicle's own
+motion (``u1_W``, or ``p_WU_nav``, ``v_WU_nav``), and outputs ``x_TU_hat``/``P_TU`` (the
+filtered estimate at step k, a direct feedthrough of the ranges only),
+``x_TU_prior``/``P_TU_prior`` (the prediction, state only), ``measurement_status`` and ``nis``.
+See :mod:`drake_uuv.estimators.base` for the hooks a variant supplies and :mod:`drake_uuv.signals`
 for the signals.
 """
 

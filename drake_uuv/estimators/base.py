@@ -74,10 +74,10 @@ class RelativeStateEstimator(LeafSystem):
 
     - input ``range_samples`` (2f): sonar 1's f samples, then sonar 2's [m]; NaN: no return.
     - input ``sonar_status`` (2): each sonar's return status (VALID, DROPPED, …).
-    - input ``R_WB`` (9, row-major): the attitude, for the world baseline ``q_s = R_WB b``.
+    - input ``R_WB_nav`` (9, row-major): the navigated attitude, for ``q_s = R_WB_nav b``.
     - input ``u1_W`` (3): the vehicle's applied world acceleration ``R u1`` at step k
-      (``vehicle_motion: commanded``), or inputs ``p_WU``, ``v_WU`` (3 each), the vehicle's
-      state (``navigation``).
+      (``vehicle_motion: commanded``), or inputs ``p_WU_nav``, ``v_WU_nav`` (3 each), the
+      vehicle's navigated state (``navigation``).
     - output ``x_TU_hat`` (6): filtered ``Υ̂(k|k) = [q̂, ϑ̂]``, ``q = p_WU − p_WT`` (the
       vehicle's position from the target, world frame), ``ϑ = v_WU − v_WT``.
     - output ``P_TU`` (36): ``P(k|k)`` row-major.
@@ -112,7 +112,7 @@ class RelativeStateEstimator(LeafSystem):
 
         self._samples_port = self.DeclareVectorInputPort("range_samples", 2 * self._f)
         self._status_port = self.DeclareVectorInputPort("sonar_status", 2)
-        self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
         self.vehicle_motion = VEHICLE_MOTIONS[config.vehicle_motion](self)
         if self.vehicle_motion.state_ports:
             self.DeclareInitializationDiscreteUpdateEvent(self._start_in_stored_frame)

@@ -8,11 +8,11 @@ import numpy as np
 
 from drake_uuv.models.measurement import VALID
 from drake_uuv.models.navigation_noise import (
+    NavigationErrors,
     difference_attitude_variance,
     range_attitude_covariance,
 )
 from drake_uuv.models.timing import PingSchedule
-from drake_uuv.scenario.navigation import NavigationErrors
 
 
 @dataclass(frozen=True)

@@ -35,13 +35,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from drake_uuv.models.navigation_noise import (
+    NavigationErrors,
     commanded_acceleration_noise,
     heading_bias_floor,
     rotation_vector_covariance,
     sound_speed_floor,
 )
 from drake_uuv.models.timing import PingSchedule
-from drake_uuv.scenario.navigation import NavigationErrors
 
 
 @dataclass(frozen=True)

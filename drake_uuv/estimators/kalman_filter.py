@@ -30,7 +30,7 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
         input_ports:
         - range_samples
         - sonar_status
-        - R_WB
+        - R_WB_nav
         - u1_W
         output_ports:
         - x_TU_hat
@@ -40,8 +40,8 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
         - measurement_status
         - nis
 
-    The ports are the base class's (with ``vehicle_motion: navigation``, ``p_WU`` and
-    ``v_WU`` in place of ``u1_W``).
+    The ports are the base class's (with ``vehicle_motion: navigation``, ``p_WU_nav`` and
+    ``v_WU_nav`` in place of ``u1_W``).
     """
 
     def __init__(self, config: PaperKf, *, setting: EstimatorSetting) -> None:

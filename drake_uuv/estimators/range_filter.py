@@ -66,7 +66,7 @@ class RangeFilter(RelativeStateEstimator):
         input_ports:
         - range_samples
         - sonar_status
-        - R_WB
+        - R_WB_nav
         - u1_W
         - particle_seed (with particles)
         output_ports:
@@ -82,8 +82,8 @@ class RangeFilter(RelativeStateEstimator):
       (logged: a run that never leaves its linear start is warned of).
     - ``particle_seed`` (1, random uniform in [0, 1), only with particles): seeds the step's
       draw, resampling, regularisation and process noise.
-    - The other ports are the base class's (with ``vehicle_motion: navigation``, ``p_WU``
-      and ``v_WU`` in place of ``u1_W``).
+    - The other ports are the base class's (with ``vehicle_motion: navigation``, ``p_WU_nav``
+      and ``v_WU_nav`` in place of ``u1_W``).
     """
 
     #: Logged beside the slot's signals: the phase of each step.

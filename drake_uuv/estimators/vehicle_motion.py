@@ -9,8 +9,8 @@ target. An estimator predicts it one of two ways (the scenario's
   the paper's kinematic vehicle, which moves exactly as commanded. The stored prediction is
   the relative state itself.
 - :class:`NavigatedMotion` (``"navigation"``): the vehicle's own state ``X = [p_WU, v_WU]`` is
-  known (inputs ``p_WU``, ``v_WU``: the paper assumes it known; a real vehicle has its
-  navigation), so the filter predicts the target alone, ``X̄(k+1|k) = A X̄(k|k)`` with
+  known (inputs ``p_WU_nav``, ``v_WU_nav``: the paper assumes it known; a real vehicle has
+  its navigation), so the filter predicts the target alone, ``X̄(k+1|k) = A X̄(k|k)`` with
   ``X̄(k|k) = X(k) − Υ̂(k|k)``, and ``Υ̂(k+1|k) = X(k+1) − X̄(k+1|k)``: exact for any vehicle,
   whatever it did of its commands. The stored prediction is ``−X̄(k+1|k)``, the relative
   state less the vehicle's state; the prior of step k adds ``X(k)``.
@@ -53,12 +53,12 @@ class CommandedMotion:
 
 class NavigatedMotion:
     """The prediction of the target alone, the vehicle's state from its navigation; declares
-    inputs ``p_WU``, ``v_WU`` (3 each)."""
+    inputs ``p_WU_nav``, ``v_WU_nav`` (3 each)."""
 
     name = "navigation"
 
     def __init__(self, system: LeafSystem) -> None:
-        self._ports = [system.DeclareVectorInputPort(name, 3) for name in ("p_WU", "v_WU")]
+        self._ports = [system.DeclareVectorInputPort(name, 3) for name in ("p_WU_nav", "v_WU_nav")]
 
     @property
     def state_ports(self) -> list[InputPort]:

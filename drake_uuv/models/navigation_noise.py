@@ -57,9 +57,34 @@ Error floors of the biases: what no estimator can see
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 from drake_uuv.models.measurement import MIN_RANGE
+
+
+@dataclass(frozen=True)
+class NavigationErrors:
+    """The navigation's error figures, in SI units, for a model of them (an estimator's error
+    model, the extended bound): σ of the white attitude noise (roll, pitch, yaw) [rad], σ of
+    the per-run heading bias [rad], σ of the white DVL noise and of the per-run DVL bias per
+    body axis [m/s]."""
+
+    attitude_noise: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    heading_bias: float = 0.0
+    velocity_noise: float = 0.0
+    velocity_bias: float = 0.0
+
+    @property
+    def any(self) -> bool:
+        """Whether any figure is non-zero."""
+        return bool(
+            np.any(self.attitude_noise > 0.0)
+            or self.heading_bias > 0.0
+            or self.velocity_noise > 0.0
+            or self.velocity_bias > 0.0
+        )
 
 
 def euler_rate_jacobian(R: np.ndarray) -> np.ndarray:

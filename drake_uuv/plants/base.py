@@ -2,13 +2,11 @@
 
 from dataclasses import dataclass
 
-import numpy as np
-
-from drake_uuv.primitives.setting import array_field, rotation_field, time_step_field
+from drake_uuv.primitives.setting import InitialStateSetting
 
 
 @dataclass(frozen=True)
-class PlantSetting:
+class PlantSetting(InitialStateSetting):
     """What every system of the plant slot gets besides its own configuration.
 
     A plant is built as ``cls(config, setting=PlantSetting(...))``; the slot's factory
@@ -25,15 +23,3 @@ class PlantSetting:
 
     Arrays are stored read-only; a bad field raises ``ValueError`` naming it and its value.
     """
-
-    time_step: float
-    initial_position: np.ndarray
-    initial_velocity: np.ndarray
-    initial_R_WB: np.ndarray
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "time_step", time_step_field(self.time_step))
-        p, v = self.initial_position, self.initial_velocity
-        object.__setattr__(self, "initial_position", array_field("initial_position", p, (3,)))
-        object.__setattr__(self, "initial_velocity", array_field("initial_velocity", v, (3,)))
-        object.__setattr__(self, "initial_R_WB", rotation_field("initial_R_WB", self.initial_R_WB))

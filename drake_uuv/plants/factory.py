@@ -1,7 +1,5 @@
 """The plant slot's factory: the system of each variant of ``scenario.plant``."""
 
-import numpy as np
-from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import System
 
 from drake_uuv.plants.base import PlantSetting
@@ -19,15 +17,7 @@ PLANTS: dict[type, type[System]] = {
 
 def plant_setting(scenario: Scenario) -> PlantSetting:
     """What a plant gets from ``scenario``: its period and ``scenario.uuv``'s initial state."""
-    uuv = scenario.uuv
-    return PlantSetting(
-        time_step=scenario.time_step,
-        initial_position=uuv.initial_position,
-        initial_velocity=uuv.initial_velocity,
-        initial_R_WB=RotationMatrix(
-            RollPitchYaw(np.asarray(uuv.initial_rpy, dtype=float))
-        ).matrix(),
-    )
+    return PlantSetting.of(scenario.time_step, scenario.uuv)
 
 
 def make_plant(scenario: Scenario) -> System:

@@ -54,6 +54,13 @@ class LowLevelController(LeafSystem):
     design holds while the hold and the thrust lag cost little phase at ω (checked by
     ``HoveringAuv.validate``) and the thrusters do not saturate.
 
+    **Feedback.** The law reads the vehicle's own state (``R_WB``, ``nu_B``, inside the
+    plant), not the navigation's ``R_WB_nav``: it is a fast inner loop, at the controller's
+    rate 1/h, on a gyro-stabilised attitude, whose short-term error the gyros keep far below
+    the AHRS's error per report. The navigation's errors enter through the outer loop, which
+    computes ``u1_B`` and ``u2_W`` from ``R_WB_nav`` once per step t: the per-step AHRS error
+    is what the outer loop sees.
+
     **Allocation.** ``τ`` goes to the thrusters through ``ThrustAllocator`` (weighted
     pseudo-inverse, attitude first under saturation); the thrusts are held for one fast
     period (discrete state).
@@ -76,7 +83,8 @@ class LowLevelController(LeafSystem):
         - saturation_ticks
 
     - ``u1_B`` (3), ``u2_W`` (3): the outer loop's commands, read at outer ticks only.
-    - ``R_WB`` (9, row-major), ``nu_B`` (6, ``[v_B, ω_B]``): the vehicle's state.
+    - ``R_WB`` (9, row-major), ``nu_B`` (6, ``[v_B, ω_B]``): the vehicle's state (its own
+      feedback, see above).
     - ``thrust_command`` (n): held thrust commands [N].
     - ``R_WB_command`` (9): the attitude target in force, ``R(k+1) = Exp(u2 t) R(kt)``.
     - ``w_WB_command`` (3): the commanded world angular velocity ``u2`` in force [rad/s].

@@ -71,18 +71,20 @@ class LqrTrackingController(LeafSystem):
         name: LqrTrackingController
         input_ports:
         - x_TU_hat
-        - R_WB
+        - R_WB_nav
         - R_WB_plan
         output_ports:
         - u1_B
         - u1_W
 
     - ``x_TU_hat`` (6): the filtered relative state ``[q̂, ϑ̂]``.
-    - ``R_WB`` (9, row-major): the current attitude ``R(k)``.
+    - ``R_WB_nav`` (9, row-major): the current attitude ``R(k)``, as the navigation knows
+      it.
     - ``R_WB_plan`` (18): the planned ``R(k+1)`` and ``R(k+2)``, row-major (the attitude
       generator's output of the same name).
     - ``u1_B`` (3): the body-frame acceleration command [m/s²].
-    - ``u1_W`` (3): the same acceleration in the world frame, ``R u1`` (the filter's input).
+    - ``u1_W`` (3): the same acceleration in the world frame, ``R u1`` with the navigated
+      ``R`` (the filter's input: the acceleration the vehicle believes it applies).
 
     ``config`` (:class:`~drake_uuv.scenario.LqrTracking`) gives q*, its frame, the weights,
     the limit and whether to feed forward; the ``setting`` the period t.
@@ -100,7 +102,7 @@ class LqrTrackingController(LeafSystem):
         self._max_acceleration = config.max_acceleration
         self._feedforward = config.feedforward
         self._x_hat_port = self.DeclareVectorInputPort("x_TU_hat", 6)
-        self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
         self._plan_port = self.DeclareVectorInputPort("R_WB_plan", 18)
         self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1)
         self.DeclareVectorOutputPort("u1_W", 3, self._calc_u1_W)

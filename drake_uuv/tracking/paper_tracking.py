@@ -26,15 +26,16 @@ class PaperTrackingController(LeafSystem):
         name: PaperTrackingController
         input_ports:
         - x_TU_hat
-        - R_WB
+        - R_WB_nav
         output_ports:
         - u1_B
         - u1_W
 
     - ``x_TU_hat`` (6): the filtered relative state ``[q̂, ϑ̂]``.
-    - ``R_WB`` (9, row-major): the current attitude.
+    - ``R_WB_nav`` (9, row-major): the current attitude ``R``, as the navigation knows it.
     - ``u1_B`` (3): the body-frame acceleration command [m/s²].
-    - ``u1_W`` (3): the same acceleration in the world frame, ``R u1`` (the filter's input).
+    - ``u1_W`` (3): the same acceleration in the world frame, ``R u1`` with the navigated
+      ``R`` (the filter's input: the acceleration the vehicle believes it applies).
 
     ``q*`` is fixed in ``reference_frame``: the body (the paper's), the world, or the body's
     heading (:func:`~drake_uuv.models.tracking_laws.reference_rotation`); the law then uses
@@ -55,7 +56,7 @@ class PaperTrackingController(LeafSystem):
         self._frame = config.reference_frame
         self._max_acceleration = config.max_acceleration
         self._x_hat_port = self.DeclareVectorInputPort("x_TU_hat", 6)
-        self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
         self._u1_port = self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1)
         self.DeclareVectorOutputPort("u1_W", 3, self._calc_u1_W)
 

@@ -38,7 +38,7 @@ def test_ports_per_variant() -> None:
         FixedAttitudeGenerator(FixedAttitude(), setting=SETTING),
         TrajectoryAttitudeGenerator(TrajectoryAttitude(), setting=SETTING),
     ):
-        assert generator.num_input_ports() == 1 and generator.GetInputPort("R_WB").size() == 9
+        assert generator.num_input_ports() == 1 and generator.GetInputPort("R_WB_nav").size() == 9
         assert generator.GetOutputPort("u2_W").size() == 3
         assert generator.GetOutputPort("R_WB_plan").size() == 18
     assert (
@@ -64,7 +64,7 @@ def test_factory_builds_each_variant(tag: str, kind: type) -> None:
 def test_fixed_attitude_commands_nothing() -> None:
     generator = FixedAttitudeGenerator(FixedAttitude(), setting=SETTING)
     assert_allclose(
-        generator.GetOutputPort("u2_W").Eval(fixed_context(generator, R_WB=R.ravel())), 0
+        generator.GetOutputPort("u2_W").Eval(fixed_context(generator, R_WB_nav=R.ravel())), 0
     )
 
 
@@ -79,7 +79,7 @@ def test_zeta_is_the_papers_function() -> None:
 @pytest.mark.parametrize("k", [0, 1, 5, 13, 24, 37, 100])
 def test_algorithm_2_makes_the_next_baseline_parallel_to_zeta(k: int) -> None:
     generator = TrajectoryAttitudeGenerator(TrajectoryAttitude(), setting=SETTING)
-    context = fixed_context(generator, R_WB=R.ravel())
+    context = fixed_context(generator, R_WB_nav=R.ravel())
     context.SetTime(k * T)
     q_s_next = next_attitude(generator, context) @ b
     direction = zeta(k, np.linalg.norm(b), 1 / 24, 0.5, 1 / 6)
@@ -91,7 +91,7 @@ def test_algorithm_2_makes_the_next_baseline_parallel_to_zeta(k: int) -> None:
 def test_algorithm_1_jumps_to_the_sampled_rotation() -> None:
     generator = RandomAttitudeGenerator(RandomAttitude(), setting=SETTING)
     noise = np.array([0.3, -1.2, 0.8, 2.0])
-    context = fixed_context(generator, R_WB=R.ravel(), rotation_noise=noise)
+    context = fixed_context(generator, R_WB_nav=R.ravel(), rotation_noise=noise)
     assert_allclose(
         next_attitude(generator, context),
         matrix_from_quaternion(noise / np.linalg.norm(noise)),
@@ -102,7 +102,7 @@ def test_algorithm_1_jumps_to_the_sampled_rotation() -> None:
 def test_algorithm_1_samples_are_uniform_rotations() -> None:
     """A uniform rotation maps b to a uniform direction: E[q_s q_sᵀ] = |b|²/3 I (Lemma 1)."""
     generator = RandomAttitudeGenerator(RandomAttitude(), setting=SETTING)
-    context = fixed_context(generator, R_WB=np.eye(3).ravel(), rotation_noise=np.ones(4))
+    context = fixed_context(generator, R_WB_nav=np.eye(3).ravel(), rotation_noise=np.ones(4))
     rng = np.random.default_rng(11)
     n = 5000
     outer = np.zeros((3, 3))
@@ -117,8 +117,8 @@ def test_algorithm_1_samples_are_uniform_rotations() -> None:
 def test_max_angular_rate_limits_the_command_along_the_same_axis() -> None:
     free = TrajectoryAttitudeGenerator(TrajectoryAttitude(), setting=SETTING)
     limited = TrajectoryAttitudeGenerator(TrajectoryAttitude(max_angular_rate=0.2), setting=SETTING)
-    context_free = fixed_context(free, R_WB=R.ravel())
-    context_limited = fixed_context(limited, R_WB=R.ravel())
+    context_free = fixed_context(free, R_WB_nav=R.ravel())
+    context_limited = fixed_context(limited, R_WB_nav=R.ravel())
     w_free = free.GetOutputPort("u2_W").Eval(context_free)
     w_limited = limited.GetOutputPort("u2_W").Eval(context_limited)
     assert np.linalg.norm(w_free) > 0.2
@@ -135,11 +135,11 @@ def test_trajectory_plan_is_the_next_two_attitudes(max_rate: float | None) -> No
         TrajectoryAttitude(max_angular_rate=max_rate), setting=SETTING
     )
     k = 17
-    context = fixed_context(generator, R_WB=R.ravel())
+    context = fixed_context(generator, R_WB_nav=R.ravel())
     context.SetTime(k * T)
     plan = generator.GetOutputPort("R_WB_plan").Eval(context)
     R1 = exp_so3(generator.GetOutputPort("u2_W").Eval(context) * T) @ R
-    generator.GetInputPort("R_WB").FixValue(context, R1.ravel())
+    generator.GetInputPort("R_WB_nav").FixValue(context, R1.ravel())
     context.SetTime((k + 1) * T)
     R2 = exp_so3(generator.GetOutputPort("u2_W").Eval(context) * T) @ R1
     assert_allclose(plan, np.r_[R1.ravel(), R2.ravel()], atol=1e-12)
@@ -147,7 +147,7 @@ def test_trajectory_plan_is_the_next_two_attitudes(max_rate: float | None) -> No
 
 def test_random_plan_holds_the_next_attitude_and_fixed_holds_the_current() -> None:
     generator = RandomAttitudeGenerator(RandomAttitude(), setting=SETTING)
-    context = fixed_context(generator, R_WB=R.ravel(), rotation_noise=[0.3, -1.2, 0.8, 2.0])
+    context = fixed_context(generator, R_WB_nav=R.ravel(), rotation_noise=[0.3, -1.2, 0.8, 2.0])
     R1 = exp_so3(generator.GetOutputPort("u2_W").Eval(context) * T) @ R
     assert_allclose(
         generator.GetOutputPort("R_WB_plan").Eval(context),
@@ -155,5 +155,5 @@ def test_random_plan_holds_the_next_attitude_and_fixed_holds_the_current() -> No
         atol=1e-12,
     )
     fixed = FixedAttitudeGenerator(FixedAttitude(), setting=SETTING)
-    plan = fixed.GetOutputPort("R_WB_plan").Eval(fixed_context(fixed, R_WB=R.ravel()))
+    plan = fixed.GetOutputPort("R_WB_plan").Eval(fixed_context(fixed, R_WB_nav=R.ravel()))
     assert_allclose(plan, np.r_[R.ravel(), R.ravel()])

@@ -64,7 +64,7 @@ def covariance(seed: int = 0) -> np.ndarray:
 
 def context_for(system: InformationSeekingAttitude, R=R0, x=X_HAT, P=None):
     P = covariance() if P is None else P
-    return fixed_context(system, R_WB=R.ravel(), x_TU_hat=x, P_TU=P.ravel())
+    return fixed_context(system, R_WB_nav=R.ravel(), x_TU_hat=x, P_TU=P.ravel())
 
 
 def test_ports_and_sizes() -> None:
@@ -77,7 +77,7 @@ def test_ports_and_sizes() -> None:
         system.get_output_port(i).get_name(): system.get_output_port(i).size()
         for i in range(system.num_output_ports())
     }
-    assert inputs == {"R_WB": 9, "x_TU_hat": 6, "P_TU": 36}
+    assert inputs == {"R_WB_nav": 9, "x_TU_hat": 6, "P_TU": 36}
     assert outputs == {"u2_W": 3, "R_WB_plan": 18}
     context = system.CreateDefaultContext()
     assert context.num_discrete_state_groups() == 3
@@ -215,9 +215,9 @@ def test_reads_the_filtered_estimate_without_an_algebraic_loop_through_lqr() -> 
     builder.Connect(controller.GetOutputPort("u1_W"), estimator.GetInputPort("u1_W"))
     for port in ("range_samples", "sonar_status"):
         builder.ExportInput(estimator.GetInputPort(port), port)
-    builder.ExportInput(estimator.GetInputPort("R_WB"), "R_WB_estimator")
-    builder.ExportInput(attitude.GetInputPort("R_WB"), "R_WB_attitude")
-    builder.ExportInput(controller.GetInputPort("R_WB"), "R_WB_controller")
+    builder.ExportInput(estimator.GetInputPort("R_WB_nav"), "R_WB_estimator")
+    builder.ExportInput(attitude.GetInputPort("R_WB_nav"), "R_WB_attitude")
+    builder.ExportInput(controller.GetInputPort("R_WB_nav"), "R_WB_controller")
     builder.ExportOutput(attitude.GetOutputPort("u2_W"), "u2_W")
     diagram = builder.Build()  # raises on an algebraic loop
     assert not diagram.HasDirectFeedthrough(
@@ -244,7 +244,7 @@ def test_a_long_run_of_the_system_keeps_budget_and_floor() -> None:
     R = [R0]
     for _ in range(200):
         M = rng.normal(size=(6, 6))
-        system.GetInputPort("R_WB").FixValue(context, R[-1].ravel())
+        system.GetInputPort("R_WB_nav").FixValue(context, R[-1].ravel())
         system.GetInputPort("x_TU_hat").FixValue(context, rng.normal(size=6) * 2)
         system.GetInputPort("P_TU").FixValue(context, (M @ M.T + 1e-3 * np.eye(6)).ravel())
         u2 = system.GetOutputPort("u2_W").Eval(context)

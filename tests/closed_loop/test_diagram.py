@@ -21,7 +21,10 @@ SHORT = ["steps=40", "steady_state_start=10"]
 def test_names_systems_sources_and_loggers(paper) -> None:
     built = make_uuv_diagram(paper)
     diagram = built.diagram
-    slots = ["uuv", "target", "sonar", "estimator", "attitude_generator", "tracking_controller"]
+    slots = [
+        "uuv", "navigation", "target", "sonar", "estimator", "attitude_generator",
+        "tracking_controller",
+    ]  # fmt: skip
     assert list(built.systems) == slots
     for name in [*slots, "acceleration_noise", "acceleration_noise_hold", "range_noise"]:
         assert diagram.HasSubsystemNamed(name), name

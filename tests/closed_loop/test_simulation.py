@@ -8,7 +8,8 @@ from drake_uuv import ClosedLoopSimulation, load_scenario, make_uuv_diagram, sim
 from drake_uuv.simulation import read_log
 
 LOG_KEYS = {
-    "k": (), "time": (), "p_WU": (3,), "v_WU": (3,), "R_WB": (3, 3), "p_WT": (3,),
+    "k": (), "time": (), "p_WU": (3,), "v_WU": (3,), "R_WB": (3, 3), "p_WU_nav": (3,),
+    "v_WU_nav": (3,), "R_WB_nav": (3, 3), "p_WT": (3,),
     "v_WT": (3,), "ranges": (2,), "Y": (), "m": (), "Gamma": (), "b_W": (3,),
     "x_TU_hat": (6,), "P_TU": (6, 6), "u1_B": (3,), "u2_W": (3,), "u1_W": (3,),
     "sonar_status": (2,), "multipath": (2,), "ping_time": (2,), "p_TS_W": (6,),

@@ -44,7 +44,7 @@ class ProportionalTracking(LeafSystem):
         super().__init__()
         self._k, self._q_star = k, np.asarray(q_star, dtype=float)
         self._x_hat = self.DeclareVectorInputPort("x_TU_hat", 6)
-        self._R_WB = self.DeclareVectorInputPort("R_WB", 9)
+        self._R_WB = self.DeclareVectorInputPort("R_WB_nav", 9)
         self.DeclareVectorOutputPort("u1_W", 3, self._calc_u1_W)
         self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1_B)
 

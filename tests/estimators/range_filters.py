@@ -52,7 +52,7 @@ def means(measured: np.ndarray | None = None) -> np.ndarray:
 
 def inputs(system: RangeFilter, seed_value: float = 0.5, **overrides) -> dict[str, np.ndarray]:
     values = dict(
-        range_samples=samples(), R_WB=np.eye(3).ravel(), u1_W=A_W, sonar_status=np.zeros(2)
+        range_samples=samples(), R_WB_nav=np.eye(3).ravel(), u1_W=A_W, sonar_status=np.zeros(2)
     )
     if system.HasInputPort("particle_seed"):
         values["particle_seed"] = [seed_value]

@@ -38,7 +38,7 @@ def setting(**fields) -> EstimatorSetting:
 
 
 def inputs() -> dict:
-    return dict(range_samples=RANGES, sonar_status=np.zeros(2), R_WB=R_WB.ravel(),
+    return dict(range_samples=RANGES, sonar_status=np.zeros(2), R_WB_nav=R_WB.ravel(),
                 u1_W=np.array([0.5, -0.2, 0.1]))  # fmt: skip
 
 

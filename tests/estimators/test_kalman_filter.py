@@ -43,7 +43,7 @@ def inputs(**overrides: np.ndarray) -> dict[str, np.ndarray]:
     values = dict(
         range_samples=RANGES,
         sonar_status=np.zeros(2),
-        R_WB=R_WB.ravel(),
+        R_WB_nav=R_WB.ravel(),
         u1_W=np.array([1.0, -3.0, 0.5]),
     )
     values.update(overrides)
@@ -59,7 +59,7 @@ def papers_measurement(d: np.ndarray) -> tuple[float, float, float, np.ndarray]:
 
 def test_ports_and_feedthrough() -> None:
     kf = make_filter()
-    sizes = {"range_samples": 2, "sonar_status": 2, "R_WB": 9, "u1_W": 3}
+    sizes = {"range_samples": 2, "sonar_status": 2, "R_WB_nav": 9, "u1_W": 3}
     inputs_ = [kf.get_input_port(i) for i in range(kf.num_input_ports())]
     assert {p.get_name(): p.size() for p in inputs_} == sizes
     outputs = {"x_TU_hat": 6, "P_TU": 36, "x_TU_prior": 6, "P_TU_prior": 36,
@@ -68,7 +68,7 @@ def test_ports_and_feedthrough() -> None:
     assert {p.get_name(): p.size() for p in outputs_} == outputs
     x_hat = kf.GetOutputPort("x_TU_hat").get_index()
     # The filtered estimate feeds through from the measurement, not from the control input.
-    for name in ("range_samples", "sonar_status", "R_WB"):
+    for name in ("range_samples", "sonar_status", "R_WB_nav"):
         assert kf.HasDirectFeedthrough(kf.GetInputPort(name).get_index(), x_hat)
     assert not kf.HasDirectFeedthrough(kf.GetInputPort("u1_W").get_index(), x_hat)
     # The prior depends on state only, so a sonar may point at it without an algebraic loop.
@@ -109,7 +109,7 @@ def test_a_measurement_along_the_baseline_only_informs_that_direction() -> None:
         baseline_B=np.array([1.0, 0.0, 0.0]),
     )  # fmt: skip
     kf = RangeDifferenceKalmanFilter(PaperKf(), setting=setting)
-    context = fixed_context(kf, **inputs(R_WB=np.eye(3).ravel()))
+    context = fixed_context(kf, **inputs(R_WB_nav=np.eye(3).ravel()))
     P = kf.GetOutputPort("P_TU").Eval(context).reshape(6, 6)
     x = kf.GetOutputPort("x_TU_hat").Eval(context)
     assert_allclose(np.diag(P)[1:], 1.0)  # y, z and the velocities are untouched
@@ -191,12 +191,14 @@ def test_navigation_and_commanded_motion_agree_on_the_kinematic_vehicle() -> Non
 def test_navigation_prediction_is_the_targets() -> None:
     """One step alone: X̄(k+1|k) = A (X(k) − Υ̂(k|k)), Υ̂(k+1|k) = X(k+1) − X̄(k+1|k)."""
     kf = make_filter(vehicle_motion="navigation")
-    assert not kf.HasInputPort("u1_W") and kf.HasInputPort("p_WU") and kf.HasInputPort("v_WU")
+    assert (
+        not kf.HasInputPort("u1_W") and kf.HasInputPort("p_WU_nav") and kf.HasInputPort("v_WU_nav")
+    )
     u = inputs()
     del u["u1_W"]
     p, v = np.array([4.0, -1.0, 0.5]), np.array([0.3, 0.1, -0.2])
     # Initialization makes the stored offset Υ̂(0|−1) − X(0): the prior is x0 whatever X(0).
-    context = fixed_context(kf, **u, p_WU=p, v_WU=v)
+    context = fixed_context(kf, **u, p_WU_nav=p, v_WU_nav=v)
     Simulator(kf, context).Initialize()
     assert_allclose(kf.GetOutputPort("x_TU_prior").Eval(context), x0, rtol=1e-14)
     # The periodic update predicts the target: the next prior at a new vehicle state X(k+1).
@@ -205,8 +207,8 @@ def test_navigation_prediction_is_the_targets() -> None:
     context.SetDiscreteState(kf.EvalUniquePeriodicDiscreteUpdate(context))
     X = np.concatenate([p, v])
     X_next = X + np.array([0.1, 0.2, 0.3, 0.0, 0.1, 0.0])
-    kf.GetInputPort("p_WU").FixValue(context, X_next[:3])
-    kf.GetInputPort("v_WU").FixValue(context, X_next[3:])
+    kf.GetInputPort("p_WU_nav").FixValue(context, X_next[:3])
+    kf.GetInputPort("v_WU_nav").FixValue(context, X_next[3:])
     assert_allclose(
         kf.GetOutputPort("x_TU_prior").Eval(context), X_next - A @ (X - x_hat), rtol=1e-12
     )

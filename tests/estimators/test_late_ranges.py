@@ -132,7 +132,7 @@ def test_the_estimate_at_each_tick_uses_exactly_the_arrived_ranges(offsets, late
                 samples[i], status[i] = values[step, i], VALID
                 ping_time[i] = schedule.ping_time(step, i)
         for name, value in (("range_samples", samples), ("sonar_status", status),
-                            ("R_WB", np.eye(3).ravel()), ("u1_W", accelerations[tick])):  # fmt: skip
+                            ("R_WB_nav", np.eye(3).ravel()), ("u1_W", accelerations[tick])):  # fmt: skip
             system.GetInputPort(name).FixValue(context, value)
         if system.HasInputPort("ping_time"):
             system.GetInputPort("ping_time").FixValue(context, ping_time)

@@ -124,7 +124,7 @@ def test_navigation_particles_are_the_targets_negated_plus_the_vehicle():
     )  # fmt: skip
     system = RangeFilter(config, setting=SETTING)
     X = np.array([4.0, -1.0, 0.5, 0.3, 0.1, -0.2])
-    values = inputs(system, p_WU=X[:3], v_WU=X[3:])
+    values = inputs(system, p_WU_nav=X[:3], v_WU_nav=X[3:])
     del values["u1_W"]
     context = system.CreateDefaultContext()
     for name, value in values.items():
@@ -139,8 +139,8 @@ def test_navigation_particles_are_the_targets_negated_plus_the_vehicle():
     )
     after = after_update(system, context)
     X_next = X + 0.1
-    system.GetInputPort("p_WU").FixValue(after, X_next[:3])
-    system.GetInputPort("v_WU").FixValue(after, X_next[3:])
+    system.GetInputPort("p_WU_nav").FixValue(after, X_next[:3])
+    system.GetInputPort("v_WU_nav").FixValue(after, X_next[3:])
     assert_allclose(system.cloud.particles(after), target + X_next[:, None], rtol=1e-12, atol=1e-14)
 
 

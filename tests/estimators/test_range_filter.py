@@ -55,7 +55,7 @@ UPDATES = {"ekf": ekf_update, "iekf": iekf_update, "ukf": ukf_range_update}
 def test_ports_sizes_and_feedthrough(kind: str, bridge: bool) -> None:
     system = make(kind, particle_bridge=bridge) if kind != "pf" else make(kind)
     particles = kind == "pf" or bridge
-    sizes = {"range_samples": 2 * F, "sonar_status": 2, "R_WB": 9, "u1_W": 3}
+    sizes = {"range_samples": 2 * F, "sonar_status": 2, "R_WB_nav": 9, "u1_W": 3}
     if particles:
         sizes["particle_seed"] = 1
     names = [system.get_input_port(i).get_name() for i in range(system.num_input_ports())]
@@ -65,7 +65,7 @@ def test_ports_sizes_and_feedthrough(kind: str, bridge: bool) -> None:
     names = [system.get_output_port(i).get_name() for i in range(system.num_output_ports())]
     assert {n: system.GetOutputPort(n).size() for n in names} == outputs
     x_hat = system.GetOutputPort("x_TU_hat").get_index()
-    for name in ("range_samples", "R_WB", "sonar_status"):
+    for name in ("range_samples", "R_WB_nav", "sonar_status"):
         assert system.HasDirectFeedthrough(system.GetInputPort(name).get_index(), x_hat)
     for name in ["u1_W", *(["particle_seed"] if particles else [])]:
         assert not system.HasDirectFeedthrough(system.GetInputPort(name).get_index(), x_hat)
@@ -99,7 +99,7 @@ def test_the_world_baseline_is_the_attitude_times_the_body_baseline() -> None:
         [[math.cos(angle), -math.sin(angle), 0.0], [math.sin(angle), math.cos(angle), 0.0],
          [0.0, 0.0, 1.0]]
     )  # fmt: skip
-    context = context_of(system, R_WB=R_WB.ravel())
+    context = context_of(system, R_WB_nav=R_WB.ravel())
     x, _, _ = ekf_update(X0, P0, means(), R_WB @ Q_S, R)
     assert_allclose(filtered(system, context)[0], x, rtol=1e-13)
     assert_allclose(system.ranges(context).q_s, R_WB @ Q_S)
@@ -206,7 +206,7 @@ def test_hand_over_happens_and_the_system_tracks_the_numpy_steps() -> None:
         d = range_measurement(x_true, q_s)
         measured = d[:, None] + np.sqrt(ETA_UNEQUAL)[:, None] * rng.standard_normal((2, F))
         a_W = 0.01 * rng.standard_normal(3)
-        for name, value in (("range_samples", measured.ravel()), ("R_WB", R_WB.ravel()),
+        for name, value in (("range_samples", measured.ravel()), ("R_WB_nav", R_WB.ravel()),
                             ("u1_W", a_W), ("sonar_status", np.zeros(2))):  # fmt: skip
             system.GetInputPort(name).FixValue(context, value)
         phases.append(system.phase(context) is Phase.LINEAR)

@@ -4,9 +4,10 @@
 positional constructor parameters (after ``self``): a system takes its own configuration
 and gets everything else by keyword (the modules are imported and the signatures inspected).
 
-(b) A module of a slot's folder (``plants/``, ``sensors/``, ``estimators/``, ``attitude/``,
-``tracking/``) imports no configuration class of another slot (the classes are resolved to
-the module that defines them, so ``from drake_uuv.scenario import Ekf`` counts as importing
+(b) A module of a slot's folder (``plants/``, ``navigation/``, ``sensors/``,
+``estimators/``, ``attitude/``, ``tracking/``) imports no configuration class of another slot
+(the classes are resolved to the module that defines them, so ``from drake_uuv.scenario
+import Ekf`` counts as importing
 ``drake_uuv.scenario.estimators``); a system module (not the folder's ``factory`` or
 ``__init__``) imports no ``Scenario``; and none calls ``getattr`` on a configuration (a name
 bound to a parameter annotated with a scenario class, to ``config``/``scenario``, or to
@@ -31,6 +32,7 @@ MAX_POSITIONAL = 3
 #: A slot's folder → the scenario module of its configurations (the sonar has none).
 SLOT_CONFIGS = {
     "plants": "drake_uuv.scenario.plants",
+    "navigation": "drake_uuv.scenario.navigation",
     "sensors": None,
     "estimators": "drake_uuv.scenario.estimators",
     "attitude": "drake_uuv.scenario.attitude",

@@ -27,6 +27,7 @@ LAYERS: list[set[str]] = [
     {  # one Drake system per module (and their helpers)
         "primitives",
         "plants",
+        "navigation",
         "sensors",
         "estimators",
         "attitude",

@@ -119,7 +119,7 @@ def test_one_step_is_the_closed_form_law() -> None:
     x_hat = np.array([0.4, -1.0, 3.0, 0.2, -0.1, 0.05])
     controller = lqr_controller(q_star)
     context = fixed_context(
-        controller, x_TU_hat=x_hat, R_WB=R.ravel(), R_WB_plan=np.r_[R1.ravel(), R2.ravel()]
+        controller, x_TU_hat=x_hat, R_WB_nav=R.ravel(), R_WB_plan=np.r_[R1.ravel(), R2.ravel()]
     )
     r0, r1, r2 = R @ q_star, R1 @ q_star, R2 @ q_star
     nu = (-3 * r0 + 4 * r1 - r2) / (2 * T)
@@ -197,8 +197,8 @@ def run_with_perfect_knowledge(
     connect(state.get_output_port(), relative.get_input_port(0))
     connect(target.get_output_port(), relative.get_input_port(1))
     connect(relative.get_output_port(), controller.GetInputPort("x_TU_hat"))
-    connect(uuv.GetOutputPort("R_WB"), controller.GetInputPort("R_WB"))
-    connect(uuv.GetOutputPort("R_WB"), attitude.GetInputPort("R_WB"))
+    connect(uuv.GetOutputPort("R_WB"), controller.GetInputPort("R_WB_nav"))
+    connect(uuv.GetOutputPort("R_WB"), attitude.GetInputPort("R_WB_nav"))
     if controller.HasInputPort("R_WB_plan"):
         connect(attitude.GetOutputPort("R_WB_plan"), controller.GetInputPort("R_WB_plan"))
     connect(controller.GetOutputPort("u1_B"), uuv.GetInputPort("u1_B"))

@@ -60,7 +60,7 @@ def test_paper_law_uses_the_rotated_q_star(frame: str) -> None:
     R = RotationMatrix(RollPitchYaw(0.4, 0.2, -0.7)).matrix()
     x_hat = np.array([0.4, -1.0, 3.0, 0.2, -0.1, 0.05])
     controller = paper_controller(q_star, 1.2, reference_frame=frame)
-    context = fixed_context(controller, x_TU_hat=x_hat, R_WB=R.ravel())
+    context = fixed_context(controller, x_TU_hat=x_hat, R_WB_nav=R.ravel())
     r = reference_rotation(R, frame) @ q_star
     a = -(2 * 1.2 / T**2) * (x_hat[:3] - r) - (2 / T) * x_hat[3:]
     assert_allclose(controller.GetOutputPort("u1_W").Eval(context), a, rtol=1e-12)
@@ -74,12 +74,12 @@ def test_lqr_in_the_world_frame_has_no_feedforward_from_turning() -> None:
     x_hat = np.r_[q_star, np.zeros(3)]  # exactly on the reference, at rest
     controller = lqr_controller(q_star, reference_frame="world")
     context = fixed_context(
-        controller, x_TU_hat=x_hat, R_WB=R.ravel(), R_WB_plan=np.r_[R1.ravel(), R2.ravel()]
+        controller, x_TU_hat=x_hat, R_WB_nav=R.ravel(), R_WB_plan=np.r_[R1.ravel(), R2.ravel()]
     )
     assert_allclose(controller.GetOutputPort("u1_W").Eval(context), 0.0, atol=1e-12)
     body = lqr_controller(q_star)
     context = fixed_context(
-        body, x_TU_hat=np.r_[R @ q_star, 0, 0, 0], R_WB=R.ravel(),
+        body, x_TU_hat=np.r_[R @ q_star, 0, 0, 0], R_WB_nav=R.ravel(),
         R_WB_plan=np.r_[R1.ravel(), R2.ravel()],
     )  # fmt: skip
     assert np.linalg.norm(body.GetOutputPort("u1_W").Eval(context)) > 1.0
