@@ -172,6 +172,8 @@ class DualSonar(LeafSystem):
         self._prior_port = self._prior_covariance_port = None
         if self._faults.beam_half_angle is not None:
             self._prior_port = self.DeclareVectorInputPort("x_TU_prior", 6)
+            # The pan-tilts point by the attitude the vehicle believes it has.
+            self._pointing_attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
             self._prior_covariance_port = self.DeclareVectorInputPort("P_TU_prior", 36)
         if self._faults.random_faults:
             self._uniform_port = declare_random_input(
@@ -242,11 +244,14 @@ class DualSonar(LeafSystem):
         q = p_WU - p_WT
         now = context.get_time()
         q_prior, radius = self._pointing(context)
+        R_point = R_WB
+        if self._prior_port is not None:
+            R_point = self._pointing_attitude_port.Eval(context).reshape(3, 3)
         tick = previous = None
         if self._timed:
             tick = TickGeometry(
                 now, p_WU, self._uuv_velocity_port.Eval(context), R_WB, p_WT,
-                self._target_velocity_port.Eval(context), q_prior, radius,
+                self._target_velocity_port.Eval(context), q_prior, radius, R_point,
             )  # fmt: skip
             previous = TickGeometry.from_vector(
                 context.get_discrete_state(self._previous_index).value()
@@ -256,7 +261,7 @@ class DualSonar(LeafSystem):
         pings: list[PingGeometry | None] = []
         for i, (tau, d) in enumerate(zip(self._tau, self._delays, strict=True)):
             if d == 0:
-                pings.append(tick_ping(i, now, q, R_WB, q_s, q_prior, radius))
+                pings.append(tick_ping(i, now, q, R_WB, q_s, q_prior, radius, R_point))
             elif previous is None:
                 pings.append(None)
             else:

@@ -65,12 +65,10 @@ class SonarFaults:
 
 
 def pointing_attitude(ping: PingGeometry) -> np.ndarray:
-    """The attitude by which the pan-tilt turns the predicted direction into its body frame.
-
-    The vehicle's true attitude at the ping. A vehicle that points by its navigation's
-    attitude returns that estimate here instead: the one line that changes.
-    """
-    return ping.R_WB
+    """The attitude by which the pan-tilt turns the predicted direction into its body frame:
+    the vehicle's navigated attitude at the ping (``R_WB_nav``, the truth with
+    ``!PerfectNavigation``)."""
+    return ping.R_point
 
 
 def beam_axis(ping: PingGeometry, baseline_B: np.ndarray) -> np.ndarray:

@@ -54,9 +54,10 @@ class TickGeometry:
     """What the sonar keeps of a tick to compute, at the next, the pings between the two.
 
     The truth (``p_WU``, ``v_WU``, ``R_WB``, ``p_WT``, ``v_WT``) and what the pan-tilts point
-    at in that step: the estimator's prediction ``q_prior`` of the tick's relative position
-    and the radius of the region they scan (NaN without a beam). ``time`` is NaN before the
-    first tick.
+    at in that step: the estimator's prediction ``q_prior`` of the tick's relative position,
+    the radius of the region they scan (NaN without a beam), and the attitude the vehicle
+    believes it has (``R_WB_nav``), by which it turns that prediction into pan and tilt.
+    ``time`` is NaN before the first tick.
     """
 
     time: float
@@ -67,13 +68,14 @@ class TickGeometry:
     v_WT: np.ndarray
     q_prior: np.ndarray
     search_radius: float
+    R_WB_nav: np.ndarray  # 3×3
 
     #: The length of :meth:`to_vector`.
-    SIZE = 26
+    SIZE = 35
 
     def to_vector(self) -> np.ndarray:
         """The discrete-state layout: time, p_WU, v_WU, R_WB (row-major), p_WT, v_WT,
-        q_prior, search radius."""
+        q_prior, search radius, R_WB_nav (row-major)."""
         return np.concatenate(
             (
                 [self.time],
@@ -84,6 +86,7 @@ class TickGeometry:
                 self.v_WT,
                 self.q_prior,
                 [self.search_radius],
+                self.R_WB_nav.ravel(),
             )
         )
 
@@ -92,14 +95,14 @@ class TickGeometry:
         v = np.asarray(vector, dtype=float)
         return cls(
             float(v[0]), v[1:4], v[4:7], v[7:16].reshape(3, 3), v[16:19], v[19:22], v[22:25],
-            float(v[25]),
+            float(v[25]), v[26:35].reshape(3, 3),
         )  # fmt: skip
 
     @classmethod
     def before_start(cls) -> Self:
         """The state before the first tick: nothing known (every entry NaN)."""
-        nan3 = np.full(3, math.nan)
-        return cls(math.nan, nan3, nan3, np.full((3, 3), math.nan), nan3, nan3, nan3, math.nan)
+        nan3, nan33 = np.full(3, math.nan), np.full((3, 3), math.nan)
+        return cls(math.nan, nan3, nan3, nan33, nan3, nan3, nan3, math.nan, nan33)
 
 
 @dataclass(slots=True)
@@ -109,7 +112,8 @@ class PingGeometry:
     ``p_TS_W``: the sonar from the target, ``q ± ½ q_s`` at the ping (W) [m]; ``offset_W``:
     the sonar from the body origin, ``± ½ R_WB b``; ``sign``: +1 for s1, −1 for s2;
     ``R_WB``: the true attitude at the ping; ``q_prior``, ``search_radius``: the prediction
-    of the ping's tick the pan-tilt points at and the radius it scans.
+    of the ping's tick the pan-tilt points at and the radius it scans; ``R_point``: the
+    attitude the vehicle believes it has at the ping, by which it points.
     """
 
     time: float
@@ -119,6 +123,7 @@ class PingGeometry:
     R_WB: np.ndarray
     q_prior: np.ndarray
     search_radius: float
+    R_point: np.ndarray
 
 
 def tick_ping(
@@ -129,14 +134,16 @@ def tick_ping(
     q_s: np.ndarray,
     q_prior: np.ndarray,
     search_radius: float,
+    R_point: np.ndarray | None = None,
 ) -> PingGeometry:
     """Sonar ``sonar``'s (0 or 1) ping with the vehicle at ``q`` from the target and the world
     baseline ``q_s = R_WB b``."""
     half = 0.5 * q_s
     offset = half if sonar == 0 else -half
     return PingGeometry(
-        time, q + offset, offset, 1.0 if sonar == 0 else -1.0, R_WB, q_prior, search_radius
-    )
+        time, q + offset, offset, 1.0 if sonar == 0 else -1.0, R_WB, q_prior, search_radius,
+        R_WB if R_point is None else R_point,
+    )  # fmt: skip
 
 
 def ping_between(
@@ -163,9 +170,11 @@ def ping_between(
         time_step,
     )
     R = interpolate_attitude(previous.R_WB, current.R_WB, s)
+    R_point = interpolate_attitude(previous.R_WB_nav, current.R_WB_nav, s)
     return tick_ping(
-        sonar, previous.time + tau, q, R, R @ baseline_B, previous.q_prior, previous.search_radius
-    )
+        sonar, previous.time + tau, q, R, R @ baseline_B, previous.q_prior,
+        previous.search_radius, R_point,
+    )  # fmt: skip
 
 
 @dataclass

@@ -61,6 +61,7 @@ class Motion:
             "p_WU": self.p_U0 + t * self.v_U0 + 0.5 * t * t * self.a_U,
             "v_WU": self.v_U0 + t * self.a_U,
             "R_WB": self.attitude(t).ravel(),
+            "R_WB_nav": self.attitude(t).ravel(),  # a perfect navigation: pointing by truth
             "p_WT": self.p_T0 + t * self.v_T0 + 0.5 * t * t * self.a_T,
             "v_WT": self.v_T0 + t * self.a_T,
         }

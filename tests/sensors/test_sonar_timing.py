@@ -17,7 +17,7 @@ from drake_uuv.models.measurement import (
     paper_measurement,
 )
 from drake_uuv.scenario import ScenarioError, SonarConfig, load_scenario
-from drake_uuv.sensors import DualSonar, sonar_faults
+from drake_uuv.sensors import DualSonar
 from drake_uuv.sensors.sonar_faults import beam_axis
 from drake_uuv.sensors.sonar_timing import arrival_delays, tick_ping
 from tests.conftest import ETA_UNEQUAL, T
@@ -263,16 +263,34 @@ def test_faults_follow_the_ping_not_the_tick() -> None:
     assert np.any(at_tick["sonar_status"][: len(late), 1] != late)
 
 
-def test_the_beam_axis_by_the_pointing_attitude(monkeypatch: pytest.MonkeyPatch) -> None:
-    """By the true attitude the axis is the predicted direction; by another (a navigation's),
-    the body-frame aim ``R_pointᵀ(−(q_prior ± ½ R_point b))`` carried by the true attitude."""
+def test_the_beam_axis_by_the_pointing_attitude() -> None:
+    """By the true attitude the axis is the predicted direction; by the navigation's, the
+    body-frame aim ``R_navᵀ(−(q_prior ± ½ R_nav b))`` carried by the true attitude."""
     motion = Motion()
     R_true = motion.attitude(0.3)
     q_s = R_true @ motion.baseline
     q_prior = np.array([-2.0, 1.0, 0.5])
-    ping = tick_ping(1, 0.3, np.array([-2.5, 1.2, 0.4]), R_true, q_s, q_prior, 0.0)
+    q = np.array([-2.5, 1.2, 0.4])
+    ping = tick_ping(1, 0.3, q, R_true, q_s, q_prior, 0.0)
     assert_array_equal(beam_axis(ping, motion.baseline), -(q_prior - 0.5 * q_s))
     R_nav = rotation(np.array([0.0, 0.0, 0.05])) @ R_true  # a 0.05 rad heading error
-    monkeypatch.setattr(sonar_faults, "pointing_attitude", lambda ping: R_nav)
+    ping = tick_ping(1, 0.3, q, R_true, q_s, q_prior, 0.0, R_nav)
     aim_B = R_nav.T @ -(q_prior - 0.5 * R_nav @ motion.baseline)
     assert_allclose(beam_axis(ping, motion.baseline), R_true @ aim_B, atol=1e-14)
+
+
+def test_the_sonar_points_by_the_navigated_attitude() -> None:
+    """A prediction on the target and a 4° beam: by the true attitude every ping returns; by a
+    navigation 20° off in heading the pan-tilt looks past the target."""
+    config = timed([0.0, 0.0], 0.0, beam_half_angle_deg=4.0, search_sigma=0.0)
+    motion = Motion()
+    priors = np.array([motion.p_TS(n * T).mean(axis=0) for n in range(6)])
+    P = np.eye(6) * 1e-6
+    draws = standard_draws(6, 1, seed=1)
+    sonar = sonar_of(config)
+    assert np.all(drive(sonar, motion, 6, draws, priors, P)["sonar_status"] == VALID)
+    turned = dataclasses.replace(motion)
+    heading = rotation(np.array([0.0, 0.0, math.radians(20.0)]))
+    original = turned.inputs
+    turned.inputs = lambda t: original(t) | {"R_WB_nav": (heading @ motion.attitude(t)).ravel()}  # type: ignore[method-assign]
+    assert np.all(drive(sonar, turned, 6, draws, priors, P)["sonar_status"] == OUT_OF_BEAM)
