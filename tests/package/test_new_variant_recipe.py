@@ -124,7 +124,7 @@ SPIN = Recipe(
 
                 name: SpinAttitude
                 input_ports:
-                - R_WB
+                - R_WB_nav
                 output_ports:
                 - u2_W
                 - R_WB_plan
@@ -133,7 +133,7 @@ SPIN = Recipe(
             def __init__(self, config: Spin, *, setting: AttitudeSetting) -> None:
                 super().__init__()
                 self._rate = config.rate
-                self._attitude = self.DeclareVectorInputPort("R_WB", 9)
+                self._attitude = self.DeclareVectorInputPort("R_WB_nav", 9)
                 self.DeclareVectorOutputPort("u2_W", 3, self._calc_rate)
                 self.DeclareVectorOutputPort("R_WB_plan", 18, self._calc_plan)
 
