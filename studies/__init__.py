@@ -11,6 +11,7 @@ modules may import each other relatively and import anything from ``drake_uuv``;
 * :mod:`.vehicle`: the ``vehicle`` group and the vehicle's limits it derives;
 * :mod:`.regimes`: the ``regimes`` group (noise and standoff × estimator);
 * :mod:`.attitude`: the ``attitude`` and ``attitude_vehicle`` groups;
+* :mod:`.navigation`: the ``navigation`` group (navigation errors and sonar timing);
 * :mod:`.paired`: the paired per-seed comparison of two study folders (a script too);
 * :mod:`.results_sections`: the results page's sections beyond the paper's claims.
 
@@ -22,6 +23,7 @@ it in a :class:`~drake_uuv.studies.Group` (name, one-line description) and add i
 from drake_uuv.studies import Group
 
 from .attitude import ATTITUDE_GROUP, ATTITUDE_VEHICLE_GROUP
+from .navigation import NAVIGATION_GROUP
 from .paper import ALPHA_GROUP, ATTITUDE_NOISE_GROUP, ESTIMATOR_GROUP, TRACKING_GROUP
 from .regimes import REGIMES_GROUP
 from .vehicle import VEHICLE_GROUP
@@ -36,4 +38,5 @@ GROUPS: list[Group] = [
     REGIMES_GROUP,
     ATTITUDE_GROUP,
     ATTITUDE_VEHICLE_GROUP,
+    NAVIGATION_GROUP,
 ]

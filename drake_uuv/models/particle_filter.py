@@ -93,6 +93,22 @@ def initial_particles(
     return x + L @ rng.standard_normal((STATE_SIZE, count))
 
 
+def defensive_draw(
+    x: np.ndarray, P: np.ndarray, count: int, rng: np.random.Generator, widening: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` draws of ``N(x, κ P)`` (κ = ``widening`` ≥ 1) weighted by ``N(x, P) / N(x, κ P)``:
+    a sample of the same ``N(x, P)`` whose tails are populated, so that ranges that fall in
+    the tail of ``N(x, P)`` still find particles to weigh. Returns the particles and their
+    normalised log weights."""
+    x = np.asarray(x, dtype=float).reshape(STATE_SIZE, 1)
+    normal = rng.standard_normal((STATE_SIZE, count))
+    L = np.linalg.cholesky(np.asarray(P, dtype=float))
+    particles = x + math.sqrt(widening) * (L @ normal)
+    # The Mahalanobis distance under P is κ |normal|²; under κP it is |normal|².
+    log_weights = -0.5 * (widening - 1.0) * np.einsum("ij,ij->j", normal, normal)
+    return particles, log_weights - _log_sum_exp(log_weights)
+
+
 def effective_sample_size(weights: np.ndarray) -> float:
     """``1 / Σ wᵢ²`` of normalised weights: N for equal weights, 1 for one particle."""
     return float(1.0 / np.dot(weights, weights))

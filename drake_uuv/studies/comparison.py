@@ -42,6 +42,9 @@ class Variant:
     # A cell of the RMSE / PCRLB tables (:func:`ratio_tables`): the variant then chooses its
     # estimator and attitude variants by tag (``estimator=!Ekf``, ``attitude=!FixedAttitude``).
     ratio_table: bool = False
+    # A shipped scenario (or file) the variant starts from instead of the comparison's base
+    # (whose overrides and seed still apply first): e.g. the ``realistic`` scenario's rows.
+    scenario: str | None = None
 
 
 # Short names of variants in row names ("kf-trajectory"); others use their tag in snake case.
@@ -222,7 +225,11 @@ def variant_studies(
     return [
         Study(
             variant.name,
-            load_scenario(base.name, [*base.overrides, *variant.overrides], seed=base.seed),
+            load_scenario(
+                variant.scenario or base.name,
+                [*base.overrides, *variant.overrides],
+                seed=base.seed,
+            ),
             runs,
             Path(out_dir) / "studies" / _slug(variant.name),
         )

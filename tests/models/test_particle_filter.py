@@ -14,6 +14,7 @@ from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.particle_filter import (
     ParticleFilter,
     ParticleFilterParameters,
+    defensive_draw,
     effective_sample_size,
     initial_particles,
     particle_ranges,
@@ -40,6 +41,30 @@ def kalman_update(x, P, z, variances=VARIANCES):
     K = P @ H.T @ np.linalg.inv(S)
     nu = z - H @ x
     return x + K @ nu, P - K @ S @ K.T, float(nu @ np.linalg.solve(S, nu))
+
+
+@pytest.mark.parametrize("widening", [1.0, 2.0, 4.0])
+def test_a_defensive_draw_is_a_weighted_sample_of_the_same_gaussian(widening):
+    count = 100_000
+    particles, log_w = defensive_draw(X0, P0, count, np.random.default_rng(11), widening)
+    weights = np.exp(log_w)
+    assert weights.sum() == pytest.approx(1.0, rel=1e-12)
+    n_eff = effective_sample_size(weights)
+    # The weights' second moment for N(0, 1) against N(0, κ) is (√κ / √(2 − 1/κ)) per axis.
+    expected = count / (math.sqrt(widening) / math.sqrt(2.0 - 1.0 / widening)) ** 6
+    assert n_eff == pytest.approx(expected, rel=0.1)
+    x, P = weighted_moments(particles, weights)
+    assert np.linalg.norm(x - X0) < 5.0 * math.sqrt(np.trace(P0) / n_eff)
+    assert np.linalg.norm(P - P0) < 5.0 * math.sqrt(2.0 / n_eff) * np.linalg.norm(P0)
+    # Its draws reach κ times further: the spread of the unweighted cloud.
+    assert_allclose(np.cov(particles), widening * P0, atol=5.0 * math.sqrt(2.0 / count) * widening)
+
+
+def test_a_defensive_draw_without_widening_is_the_plain_draw():
+    plain = initial_particles(X0, P0, 500, np.random.default_rng(4))
+    particles, log_w = defensive_draw(X0, P0, 500, np.random.default_rng(4), 1.0)
+    assert_array_equal(particles, plain)
+    assert_allclose(log_w, -math.log(500), rtol=1e-12)
 
 
 @pytest.mark.parametrize("count", [2_000, 20_000, 200_000])
