@@ -18,11 +18,11 @@ from drake_uuv.models.measurement import VALID
 from drake_uuv.models.particle_filter import (
     STATE_SIZE,
     ParticleFilterParameters,
+    defensive_draw,
     initial_particles,
     normalised,
     pf_predict,
     pf_update,
-    defensive_draw,
     resample_regularised,
     weighted_moments,
 )
@@ -41,6 +41,7 @@ _SEED_BITS = 53
 # of about half the effective sample size (realistic scenario, seed 9: 3 particles of 5000
 # kept their weight and the run stopped; with the widening it ran to the end).
 _HANDOVER_WIDENING = 2.0
+
 
 class ParticleCloud:
     """N weighted particles of the relative state, declared on ``host``.
