@@ -140,6 +140,15 @@ class ClosedLoopSimulation:
             raise SimulationFailure(
                 f"seed {scenario.random_seed}: run stopped: {self.monitor.failure}"
             ) from e
+        except np.linalg.LinAlgError as e:
+            # A factorisation inside a system's update (a UKF's sigma points, a Kalman gain)
+            # failed before the monitor saw the step: the estimate had already broken down.
+            step = round(context.get_time() / scenario.time_step)
+            raise SimulationFailure(
+                f"seed {scenario.random_seed}: run stopped: a covariance or innovation matrix "
+                f"could not be factorised ({e}) in the update after step k={step} "
+                f"(t={context.get_time():g} s)"
+            ) from e
         log = log_from_loggers(self.built, context, scenario.steps)
         metrics = run_metrics(log, scenario)
         metrics.update(

@@ -12,6 +12,11 @@ from typing import Any
 
 Section = Callable[[Path, Path, int, dict[str, Any]], str]
 
-from . import attitude, regimes, vehicle  # noqa: E402  (after Section, which they do not need)
+from . import attitude, navigation, regimes, vehicle  # noqa: E402  (after Section, which they do not need)
 
-SECTIONS: list[Section] = [vehicle.section, regimes.section, attitude.section]
+SECTIONS: list[Section] = [
+    vehicle.section,
+    regimes.section,
+    attitude.section,
+    navigation.section,
+]

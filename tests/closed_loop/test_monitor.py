@@ -96,6 +96,28 @@ def test_other_simulator_errors_are_not_taken_for_the_monitors() -> None:
     assert simulation.monitor.failure is None
 
 
+def test_a_factorisation_that_fails_inside_an_update_stops_the_run_with_its_step() -> None:
+    """A UKF's sigma points or a gain factorise P inside the update, before the monitor sees
+    the step: the run stops as a failure, not with numpy's traceback."""
+
+    class Factorising(ConstantEstimator):
+        def estimate(self, context):
+            if context.get_time() >= 12.0:
+                np.linalg.cholesky(-np.eye(2))
+            return X, P, 0.5
+
+    simulation = ClosedLoopSimulation(
+        load_scenario("paper", SHORT), systems={"estimator": Factorising(X, P)}
+    )
+    with pytest.raises(SimulationFailure) as info:
+        simulation.run()
+    assert str(info.value) == (
+        "seed 0: run stopped: a covariance or innovation matrix could not be factorised "
+        "(Matrix is not positive definite) in the update after step k=24 (t=12 s)"
+    )
+    assert isinstance(info.value.__cause__, np.linalg.LinAlgError)
+
+
 def test_cli_reports_a_stopped_run_in_one_line(broken, capsys, tmp_path) -> None:
     broken("indefinite", 10)
     assert main(["run", "--out", str(tmp_path), *sum((["--set", s] for s in SHORT), [])]) == 1
