@@ -73,3 +73,24 @@ def test_the_hovering_auv_is_as_accurate_as_the_kinematic_plant() -> None:
     assert np.sqrt(np.mean(rmse**2)) <= ACCEPTANCE * np.sqrt(np.mean(reference**2))
     np.testing.assert_allclose(rmse / reference, 1.0, atol=PER_SEED)
     assert not np.array_equal(rmse, reference)  # the vehicle's own dynamics ran
+
+
+def test_realistic_is_the_navigation_study_s_particle_filter_row_on_the_vehicle() -> None:
+    rows = {v.name: v for v in study_module("navigation").realistic_variants()}
+    row = rows["realistic-auv-pf-modelled"]
+    assert load_scenario("realistic") == load_scenario(row.scenario, list(row.overrides))
+
+
+@pytest.mark.slow
+def test_realistic_on_the_kinematic_plant_runs_through_the_particle_hand_over() -> None:
+    """Seed 9 with 5000 particles and the paper's prior P0 = I is the run whose window
+    hand-over drew its cloud from N(x, P), weighed it by the window's ranges, kept 3 particles
+    of 5000 and stopped at k = 103: with the widened draw it runs to the end."""
+    identity = "[" + ",".join(str(list(row)) for row in np.eye(6).tolist()) + "]"
+    overrides = ["plant=KinematicUuv", "estimator.particle_count=5000",
+                 f"estimator.initial_covariance={identity}"]  # fmt: skip
+    result = ClosedLoopSimulation(load_scenario("realistic", overrides)).run(9)
+    phases = result.log["estimator_phase"][:, 0]
+    assert phases[0] == 1.0 and phases[-1] == 2.0  # linear start, then particles
+    assert result.metrics["position_rmse"] < 1.0
+    assert result.metrics["final_position_error"] < 2.0

@@ -35,7 +35,7 @@ VEHICLE_SPEED_BUDGET = vehicle.VEHICLE_SPEED_BUDGET
 def test_the_groups_in_order_and_the_paper_s_three_run_by_default():
     assert list(GROUPS) == [
         "attitude_noise", "alpha", "estimator", "tracking",
-        "vehicle", "regimes", "attitude", "attitude_vehicle",
+        "vehicle", "regimes", "attitude", "attitude_vehicle", "navigation",
     ]  # fmt: skip
     assert [name for name, group in GROUPS.items() if group.paper] == [
         "attitude_noise",
@@ -52,9 +52,10 @@ def test_the_groups_in_order_and_the_paper_s_three_run_by_default():
 def test_every_variant_loads_and_variant_names_are_unique():
     variants = [v for group in GROUPS.values() for v in group.variants()]
     names = [variant.name for variant in variants]
-    assert len(names) == len(set(names)) == 103
+    assert len(names) == len(set(names)) == 103 + 136
     for variant in variants:
-        load_scenario("paper", list(variant.overrides))  # raises ScenarioError if not
+        # Raises ScenarioError if not.
+        load_scenario(variant.scenario or "paper", list(variant.overrides))
 
 
 def test_alphas_are_labelled_by_the_proven_interval():
@@ -191,3 +192,54 @@ def test_attitude_vehicle_target_reaches_the_speed_budget_as_rms_final_speed():
     variances = paper.time_step**2 * steps * np.diag(W)  # of each final velocity component
     std = np.sqrt(np.sum(2.0 * variances**2 + 4.0 * v0**2 * variances) / n)
     assert abs(speed2.mean() - (v0 @ v0 + walk)) < 4.0 * std
+
+
+def test_navigation_group_varies_one_error_source_at_a_time_and_names_it():
+    navigation = study_module("navigation")
+    rows = {v.name: v for v in navigation.source_variants()}
+    # 2 laws × (the error-free row with one model + 7 sources × 2 models) × 4 estimators.
+    assert len(rows) == 2 * (1 + 7 * 2) * 4
+    zero = {"attitude_noise_deg": [0.0, 0.0, 0.0], "heading_bias_deg": 0.0,
+            "velocity_noise": 0.0, "velocity_bias": 0.0}  # fmt: skip
+    expected = {
+        "ideal": {},
+        "ahrs": {"attitude_noise_deg": [0.5, 0.5, 2.0]},
+        "compass": {"heading_bias_deg": 2.0},
+        "dvl": {"velocity_noise": 0.01, "velocity_bias": 0.005},
+    }
+    for source, figures in expected.items():
+        s = load_scenario("paper", list(rows[f"lqr-{source}-pf-modelled"].overrides))
+        if not figures:
+            assert type(s.navigation).__name__ == "PerfectNavigation"
+            continue
+        nav = s.navigation
+        got = {name: getattr(nav, name) for name in zero}
+        assert got == {**zero, **figures}
+        assert s.sonar.ping_offsets == [0.0, 0.0] and s.sonar.latency == 0.0
+    timing = {"pings": ("ping_offsets", [0.0, 0.25]), "latency": ("latency", 0.2),
+              "sound": ("sound_speed_error", 0.005)}  # fmt: skip
+    for source, (field, value) in timing.items():
+        s = load_scenario("paper", list(rows[f"paper-{source}-kf-ideal"].overrides))
+        assert getattr(s.sonar, field) == value
+        assert type(s.navigation).__name__ == "PerfectNavigation"
+        assert type(s.estimator) is PaperKf and s.estimator.error_model == "ideal"
+    lqr = load_scenario("paper", list(rows["lqr-all-ukf-modelled"].overrides))
+    assert type(lqr.tracking) is LqrTracking and lqr.tracking.reference_frame == "world"
+    assert lqr.tracking.max_acceleration == 3.0
+    assert lqr.estimator.vehicle_motion == "navigation"
+
+
+def test_navigation_group_s_realistic_rows_start_every_estimator_from_the_scenario_s_prior():
+    navigation = study_module("navigation")
+    rows = {v.name: v for v in navigation.realistic_variants()}
+    assert len(rows) == 2 * 4 * 2
+    own = load_scenario("realistic")
+    for name, variant in rows.items():
+        assert variant.scenario == "realistic"
+        s = load_scenario("realistic", list(variant.overrides))
+        assert s.estimator.initial_covariance == own.estimator.initial_covariance, name
+        assert s.estimator.error_model == name.rsplit("-", 1)[1]
+        plant = HoveringAuv if "-auv-" in name else KinematicUuv
+        assert type(s.plant) is plant
+        if "-pf-" in name:  # the scenario's own particle filter, 20 000 particles
+            assert s.estimator.particle_count == own.estimator.particle_count == 20_000
