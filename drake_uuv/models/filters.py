@@ -46,7 +46,7 @@ from drake_uuv.models.measurement import (
 
 class RangeUpdate(Protocol):
     """A Gaussian update on the raw ranges: :func:`ekf_update`, :func:`iekf_update`, or the
-    unscented :class:`~drake_uuv.models.unscented.UnscentedRangeUpdate`.
+    unscented :func:`~drake_uuv.models.unscented.unscented_range_update`.
 
     ``(x_pred, P_pred, z, q_s, R, sonars=...) -> (x, P, nis)``: ``z`` the per-sonar sample
     means, ``R`` their covariance, ``sonars`` the indices of the sonars that returned.

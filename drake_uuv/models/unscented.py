@@ -43,11 +43,13 @@ Every update returns ``(x, P, nis)`` like :func:`drake_uuv.models.filters.ekf_up
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from drake_uuv.models.filters import RangeUpdate
 from drake_uuv.models.measurement import batch_ranges
 
 
@@ -175,25 +177,10 @@ def ukf_range_update(
     )
 
 
-@dataclass(frozen=True)
-class UnscentedRangeUpdate:
-    """:func:`ukf_range_update` with its sigma-point parameters: a
+def unscented_range_update(parameters: SigmaPointParameters = DEFAULT_PARAMETERS) -> RangeUpdate:
+    """:func:`ukf_range_update` with its sigma-point parameters bound: a
     :class:`~drake_uuv.models.filters.RangeUpdate`."""
-
-    parameters: SigmaPointParameters = DEFAULT_PARAMETERS
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.parameters, SigmaPointParameters):
-            raise ValueError(f"parameters: must be SigmaPointParameters, got {self.parameters!r}")
-        self.parameters.spread(6)  # Fail early on a κ with n + κ ≤ 0.
-
-    def __call__(
-        self,
-        x_pred: np.ndarray,
-        P_pred: np.ndarray,
-        z: np.ndarray,
-        q_s: np.ndarray,
-        R: np.ndarray,
-        sonars: tuple[int, ...] | np.ndarray = (0, 1),
-    ) -> tuple[np.ndarray, np.ndarray, float]:
-        return ukf_range_update(x_pred, P_pred, z, q_s, R, sonars, self.parameters)
+    if not isinstance(parameters, SigmaPointParameters):
+        raise ValueError(f"parameters: must be SigmaPointParameters, got {parameters!r}")
+    parameters.spread(6)  # Fail early on a κ with n + κ ≤ 0.
+    return functools.partial(ukf_range_update, parameters=parameters)

@@ -14,7 +14,7 @@ from drake_uuv.models.filters import RangeUpdate, ekf_update, iekf_update
 from drake_uuv.models.handover import HandoverPolicy, HandoverRule, ThresholdHandover
 from drake_uuv.models.information import EstimatorPlanningModel, PlannedMeasurement
 from drake_uuv.models.particle_filter import ParticleFilterParameters
-from drake_uuv.models.unscented import UnscentedRangeUpdate
+from drake_uuv.models.unscented import ukf_range_update
 from drake_uuv.scenario.validation import (
     check_choice,
     check_positive,
@@ -253,7 +253,7 @@ class Ukf(GaussianRangeOptions):
     β = 2, κ = 3 − n: sigma points at ±√3 σ, every weight positive."""
 
     def range_update(self) -> RangeUpdate:
-        return UnscentedRangeUpdate()
+        return ukf_range_update
 
 
 @dataclass

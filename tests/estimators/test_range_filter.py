@@ -23,8 +23,8 @@ from drake_uuv.models.measurement import (
 from drake_uuv.models.motion import process_noise_covariance
 from drake_uuv.models.unscented import (
     SigmaPointParameters,
-    UnscentedRangeUpdate,
     ukf_range_update,
+    unscented_range_update,
 )
 from drake_uuv.scenario import Ekf, ScenarioError, load_scenario
 from drake_uuv.testing import after_update
@@ -137,7 +137,7 @@ def test_no_return_only_predicts() -> None:
 
 def test_ukf_uses_its_sigma_point_parameters() -> None:
     params = SigmaPointParameters(alpha=0.5, beta=0.0, kappa=0.0)
-    update = UnscentedRangeUpdate(params)
+    update = unscented_range_update(params)
     assert_allclose(
         update(X0, P0, means(), Q_S, R)[0],
         ukf_range_update(X0, P0, means(), Q_S, R, (0, 1), params)[0],
@@ -146,11 +146,11 @@ def test_ukf_uses_its_sigma_point_parameters() -> None:
         update(X0, P0, means(), Q_S, R)[0], ukf_range_update(X0, P0, means(), Q_S, R)[0]
     )
     with pytest.raises(ValueError, match=r"^kappa: n \+ kappa must be > 0"):
-        UnscentedRangeUpdate(SigmaPointParameters(kappa=-6.0))
+        unscented_range_update(SigmaPointParameters(kappa=-6.0))
     with pytest.raises(
         ValueError, match=r"^parameters: must be SigmaPointParameters, got \(1, 2, 0\)$"
     ):
-        UnscentedRangeUpdate((1, 2, 0))
+        unscented_range_update((1, 2, 0))
 
 
 @pytest.mark.parametrize("kind", ["ekf", "ukf", "pf"])
