@@ -62,4 +62,4 @@ def test_drake_uuv_run_writes_the_figure_unless_the_navigation_is_perfect(
     args = ["run", "--out", str(tmp_path), "--set", "steps=20", "--set", "steady_state_start=5"]
     assert main([*args, "--set", f"navigation=!{navigation}"]) == 0
     for suffix in ("png", "svg"):
-        assert (tmp_path / "figures" / f"navigation.{suffix}").exists() == written
+        assert (tmp_path / "figures" / f"navigation_errors.{suffix}").exists() == written
