@@ -181,9 +181,10 @@ def extended_bound(log: dict[str, np.ndarray], scenario: Scenario) -> tuple[np.n
     - the range noise ``η/f`` plus, with ``!InertialNavigation``, the attitude noise's
       ``J Σ_θ Jᵀ`` (``Σ_θ`` at the step's true attitude, ``J`` at each ping's geometry);
     - with ``estimator.vehicle_motion: commanded``, ``W + [a]× Σ_θ [a]×ᵀ`` per step (``a``:
-      the log's ``u1_W``); with ``navigation``, the DVL's noise and bias as a position
-      process noise ``t² (σ_v² + σ_b²)`` per axis and step, and the navigated velocity's own
-      ``σ_v² + σ_b²`` per axis added to the velocity block at each tick;
+      the log's ``u1_W``); with ``navigation``, the navigated velocity's error
+      ``Σ_ev = (σ_v² + σ_b²) I + [v]× Σ_θ [v]×ᵀ`` (the DVL's noise and bias, and the attitude
+      noise turning the true velocity ``v``) as a position process noise ``t² Σ_ev`` per step,
+      and ``Σ_ev`` added to the velocity block at each tick;
     - floors: the heading bias's ``σ_ψ² g gᵀ`` and the sound speed's ``ε² q qᵀ``.
 
     The bound is the estimator's whatever it believes (``estimator.error_model`` does not
@@ -198,7 +199,10 @@ def extended_bound(log: dict[str, np.ndarray], scenario: Scenario) -> tuple[np.n
     W = np.asarray(scenario.target.acceleration_covariance, dtype=float)
     if motion == "commanded":
         W = W + commanded_acceleration_noise(log["u1_W"], Sigma)
-    dvl = nav.velocity_noise**2 + nav.velocity_bias**2 if motion == "navigation" else 0.0
+    velocity = np.zeros((len(R_WB), 3, 3))
+    if motion == "navigation":  # the navigated velocity's error Σ_ev, on the true motion
+        velocity += (nav.velocity_noise**2 + nav.velocity_bias**2) * np.eye(3)
+        velocity += commanded_acceleration_noise(log["v_WU"], Sigma)
     bound = pcrlb_timed(
         tau,
         lag,
@@ -207,9 +211,9 @@ def extended_bound(log: dict[str, np.ndarray], scenario: Scenario) -> tuple[np.n
         np.asarray(scenario.estimator.initial_covariance, dtype=float),
         W,
         t,
-        position_noise=t * t * dvl,
+        position_noise=t * t * velocity,
     )
-    bound[:, 3:, 3:] += dvl * np.eye(3)
+    bound[:, 3:, 3:] += velocity
     q, velocity = log["p_WU"] - log["p_WT"], log["v_WU"] - log["v_WT"]
     floor = heading_bias_floor(q, velocity, nav.heading_bias)
     floor += sound_speed_floor(q, scenario.sonar.sound_speed_error)

@@ -302,10 +302,13 @@ class RelativeStateEstimator(LeafSystem):
         """``(A (x − offset) + B acceleration, A P Aᵀ + Q)``: the prediction of a relative
         estimate, in the frame the state stores (see :attr:`vehicle_motion`)."""
         motion = self.vehicle_motion
-        return predict(
-            x - motion.offset(context), P, motion.acceleration(context), self._A, self._B,
-            self._Q,
-        )  # fmt: skip
+        offset, a = motion.offset(context), motion.acceleration(context)
+        Q = self._Q
+        if self._error_model.active:
+            R_WB_nav = self._attitude_port.Eval(context).reshape(3, 3)
+            extra = self._error_model.process_noise(self._time_step, a, R_WB_nav, offset[3:])
+            Q = Q if extra is None else Q + extra
+        return predict(x - offset, P, a, self._A, self._B, Q)
 
     def write_prediction(
         self, discrete_state: DiscreteValues, x: np.ndarray, P: np.ndarray
@@ -346,8 +349,17 @@ class RelativeStateEstimator(LeafSystem):
         estimate = self.filtered_estimate(context)
         if estimate is None:
             estimate = self._filtered_by_update(context)
-        estimate.floor = self._error_model.floor(estimate.x)
+        estimate.floor = self._error_model.floor(estimate.x, self._velocity_covariance(context))
         value.set_value(estimate)
+
+    def _velocity_covariance(self, context: Context) -> np.ndarray | None:
+        """``Σ_ev`` of the navigated velocity at this tick (navigated motion only)."""
+        if not self._error_model.navigated_motion:
+            return None
+        R_WB_nav = self._attitude_port.Eval(context).reshape(3, 3)
+        return self._error_model.velocity_covariance(
+            self.vehicle_motion.offset(context)[3:], R_WB_nav
+        )
 
     def _filtered_by_update(self, context: Context) -> FilteredEstimate:
         prior = self.prior(context)

@@ -11,10 +11,12 @@ error) into the filter:
 - **attitude noise → process noise** with ``vehicle_motion: commanded``: the commanded world
   acceleration ``R_nav u1`` the filter predicts with is off by ``a × θ``: ``[a]× Σ_θ [a]×ᵀ``
   added to W for the step;
-- **DVL noise → process noise** with ``vehicle_motion: navigation``: the dead-reckoned
-  position the filter subtracts walks by about ``t σ_v`` a step (white noise and the bias,
-  which turns with the body): ``t² (σ_v² + σ_b²)`` per axis on the position, and the
-  navigated velocity's own error ``σ_v² + σ_b²`` on the published velocity covariance;
+- **navigated velocity → process noise** with ``vehicle_motion: navigation``: the navigated
+  velocity ``R_WB_nav v_B`` is off by the DVL's noise and bias (``σ_v² + σ_b²`` per axis; the
+  bias turns with the body) and by the AHRS noise turning the velocity, ``θ × v``
+  (``[v]× Σ_θ [v]×ᵀ``, 6 cm/s at 1.6 m/s with a 2° yaw noise, six times the DVL's 1 cm/s).
+  That error ``Σ_ev`` walks the dead-reckoned position the filter subtracts by ``t² Σ_ev`` a
+  step, and is added to the published velocity covariance;
 - **the biases** are not estimated as state. The heading bias rotates the whole relative
   frame about z, which ranges cannot see: its error ``b e_z × x`` is a floor, added to the
   published covariance (``σ_ψ² (e_z × x)(e_z × x)ᵀ``). The DVL's bias is in the body frame and
@@ -34,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drake_uuv.models.motion import process_noise_covariance
 from drake_uuv.models.navigation_noise import (
     NavigationErrors,
     commanded_acceleration_noise,
@@ -82,17 +85,41 @@ class ErrorModel:
         sigma_theta = rotation_vector_covariance(R_WB_nav, self.errors.attitude_noise)
         return commanded_acceleration_noise(a_W, sigma_theta)
 
-    @property
-    def velocity_variance(self) -> float:
-        """``σ_v² + σ_b²`` of the navigated velocity per axis (navigated motion only)."""
+    def velocity_covariance(self, v_W_nav: np.ndarray, R_WB_nav: np.ndarray) -> np.ndarray | None:
+        """``Σ_ev`` (3×3) of the navigated velocity's error at the navigated velocity and
+        attitude: ``(σ_v² + σ_b²) I + [v]× Σ_θ [v]×ᵀ`` (navigated motion only; None otherwise
+        or when it is zero)."""
         if not self.navigated_motion:
-            return 0.0
-        return self.errors.velocity_noise**2 + self.errors.velocity_bias**2
+            return None
+        dvl = self.errors.velocity_noise**2 + self.errors.velocity_bias**2
+        covariance = dvl * np.eye(3)
+        if self.attitude_noise:
+            sigma_theta = rotation_vector_covariance(R_WB_nav, self.errors.attitude_noise)
+            # θ × v has the covariance of θ × a: the same cross product.
+            covariance += commanded_acceleration_noise(v_W_nav, sigma_theta)
+        return covariance if covariance.any() else None
 
-    def floor(self, x: np.ndarray) -> np.ndarray | None:
+    def process_noise(
+        self, time_step: float, a_W: np.ndarray, R_WB_nav: np.ndarray, v_W_nav: np.ndarray
+    ) -> np.ndarray | None:
+        """What the navigation adds to a step's Q (6×6) with the paper's timing: the commanded
+        acceleration's error through the double integrator (commanded motion), or the
+        dead-reckoned position's walk ``t² Σ_ev`` (navigated motion). None when nothing."""
+        Q = np.zeros((6, 6))
+        W = self.acceleration_covariance(a_W, R_WB_nav)
+        if W is not None:
+            Q += process_noise_covariance(W, time_step)
+        velocity = self.velocity_covariance(v_W_nav, R_WB_nav)
+        if velocity is not None:
+            Q[:3, :3] += (time_step * time_step) * velocity
+        return Q if Q.any() else None
+
+    def floor(
+        self, x: np.ndarray, velocity_covariance: np.ndarray | None = None
+    ) -> np.ndarray | None:
         """What the published covariance adds to the filter's own at the estimate ``x``: the
         heading bias's and the sound-speed scale's floors, and the navigated velocity's error
-        (None when there is none)."""
+        ``velocity_covariance`` (:meth:`velocity_covariance`; None when there is none)."""
         if not self.active:
             return None
         floor = np.zeros((6, 6))
@@ -101,7 +128,8 @@ class ErrorModel:
             floor += heading_bias_floor(x[:, :3], x[:, 3:], self.errors.heading_bias)[0]
         if self.sound_speed_error != 0.0:
             floor += sound_speed_floor(x[:, :3], self.sound_speed_error)[0]
-        floor[3:, 3:] += self.velocity_variance * np.eye(3)
+        if velocity_covariance is not None:
+            floor[3:, 3:] += velocity_covariance
         return floor if floor.any() else None
 
 

@@ -78,8 +78,9 @@ def gaussian_step(
     a = np.zeros(3) if navigated else step.acceleration
     extra_W = model.acceleration_covariance(a, step.R_start)
     P = P.copy()
-    if model.velocity_variance > 0.0:  # the dead-reckoned position's walk over the step
-        P[:3, :3] += (t * t * model.velocity_variance) * np.eye(3)
+    velocity = model.velocity_covariance(step.start[3:], step.R_start) if navigated else None
+    if velocity is not None:  # the dead-reckoned position's walk over the step
+        P[:3, :3] += (t * t) * velocity
     z, P_z = augment(x, P, W if extra_W is None else W + extra_W)
 
     def at(tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

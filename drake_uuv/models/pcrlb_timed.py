@@ -128,15 +128,19 @@ def pcrlb_timed(
 
     ``tau``, ``lag``, ``p_TS``, ``noise`` as in :func:`ping_information` (N steps, sonar i of
     step k in entry ``[k, i]``); ``P0`` (6×6) the prior ``P(0|−1)``; ``W`` (3×3, or N×3×3
-    per step) the covariance of the step's unknown acceleration; ``position_noise`` (scalar
-    or N) a per-axis position variance added over each step. See the module docstring.
+    per step) the covariance of the step's unknown acceleration; ``position_noise`` a position
+    covariance added over each step: a per-axis variance (scalar, or N per step) or a 3×3
+    matrix (or N×3×3 per step). See the module docstring.
     """
     lags, window = _check(tau, lag, time_step)
     steps = lags.shape[0]
     info = ping_information(tau, lags, p_TS, noise, window)
     W_inv = np.linalg.inv(np.broadcast_to(np.asarray(W, dtype=float), (steps, 3, 3)))
     Qp = np.zeros((steps, 6, 6))
-    Qp[:, :3, :3] = np.broadcast_to(position_noise, (steps,))[:, None, None] * np.eye(3)
+    position_noise = np.asarray(position_noise, dtype=float)
+    if position_noise.ndim < 2:  # per-axis variances
+        position_noise = position_noise[..., None, None] * np.eye(3)
+    Qp[:, :3, :3] = np.broadcast_to(position_noise, (steps, 3, 3))
     G = step_transition(time_step)
 
     def advance(P: np.ndarray, k: np.ndarray, information: np.ndarray) -> np.ndarray:

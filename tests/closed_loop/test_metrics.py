@@ -247,6 +247,24 @@ def test_the_attitude_noise_enters_the_ranges_and_the_commanded_acceleration() -
     assert _psd_le(extended_bound(log, timed)[0], expected)
 
 
+def test_with_navigated_motion_the_attitude_noise_turns_the_navigated_velocity() -> None:
+    """``Σ_ev = [v]× Σ_θ [v]×ᵀ`` on the true velocity: the position's walk ``t² Σ_ev`` per
+    step and ``Σ_ev`` on the velocity block (the commanded acceleration unused)."""
+    scenario = _scenario(*ERRORS["attitude noise, navigation"])
+    log = _synthetic_log(scenario)
+    tau, lag, p_TS = ping_arrivals(log, scenario)
+    Sigma = rotation_vector_covariance(log["R_WB"], np.radians([0.5, 0.5, 2.0]))
+    noise = np.zeros((STEPS, 2, 2))
+    for k in range(STEPS):  # the paper's timing: both pings at the tick
+        J = np.stack([_range_derivative(p_TS[k, i] - sign * log["b_W"][k], sign * log["b_W"][k])
+                      for i, sign in enumerate((0.5, -0.5))])  # fmt: skip
+        noise[k] = np.diag(ETA) + J @ Sigma[k] @ J.T
+    velocity = np.stack([hat(v) @ S @ hat(v).T for v, S in zip(log["v_WU"], Sigma, strict=True)])
+    expected = pcrlb_timed(tau, lag, p_TS, noise, np.eye(6), W, T, position_noise=T * T * velocity)
+    expected[:, 3:, 3:] += velocity
+    assert_allclose(extended_bound(log, scenario)[0], expected, rtol=1e-7, atol=1e-12)
+
+
 def test_the_timed_bound_reads_the_logs_pings() -> None:
     """Against the models' recursion on the pings the synthetic log was built from."""
     scenario = _scenario("sonar.ping_offsets=[0.1, 0.3]", "sonar.latency=0.6")

@@ -4,11 +4,14 @@ floors of the biases in the published covariance, and ``error_model: ideal`` ign
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from pydrake.math import RollPitchYaw, RotationMatrix
 
 from drake_uuv.estimators import EstimatorSetting, RangeDifferenceKalmanFilter, RangeFilter
 from drake_uuv.models.filters import ekf_update, range_difference_update
 from drake_uuv.models.measurement import range_difference_noise
+from drake_uuv.models.motion import double_integrator, process_noise_covariance
 from drake_uuv.models.navigation_noise import (
+    commanded_acceleration_noise,
     difference_attitude_variance,
     heading_bias_floor,
     range_attitude_covariance,
@@ -16,7 +19,7 @@ from drake_uuv.models.navigation_noise import (
 )
 from drake_uuv.models.timing import PingSchedule
 from drake_uuv.scenario import Ekf, NavigationErrors, PaperKf
-from drake_uuv.testing import fixed_context
+from drake_uuv.testing import discrete_update, fixed_context
 from tests.conftest import ETA_UNEQUAL, T, W
 
 X0 = np.array([-2.0, -2.2, 0.4, 0.1, -0.05, 0.0])
@@ -87,11 +90,70 @@ def test_with_navigated_motion_the_dvl_walks_the_position_and_blurs_the_velocity
     nav = config(PaperKf, vehicle_motion="navigation")
     kf = RangeDifferenceKalmanFilter(nav, setting=setting(navigation_errors=ERRORS))
     model = kf.error_model
-    variance = ERRORS.velocity_noise**2 + ERRORS.velocity_bias**2
-    assert model.velocity_variance == pytest.approx(variance)
+    # Level and heading along x at 1.6 m/s: θ × v is (0, θ_yaw v, −θ_pitch v).
+    v = np.array([1.6, 0.0, 0.0])
+    sigma_roll, sigma_pitch, sigma_yaw = ERRORS.attitude_noise
+    dvl = ERRORS.velocity_noise**2 + ERRORS.velocity_bias**2
+    velocity = np.diag([dvl, dvl + (sigma_yaw * 1.6) ** 2, dvl + (sigma_pitch * 1.6) ** 2])
+    assert_allclose(model.velocity_covariance(v, np.eye(3)), velocity, rtol=1e-12)
     expected = heading_bias_floor(X0[None, :3], X0[None, 3:], ERRORS.heading_bias)[0]
-    expected[3:, 3:] += variance * np.eye(3)
-    assert_allclose(model.floor(X0), expected, rtol=1e-12)
+    expected[3:, 3:] += velocity
+    assert_allclose(model.floor(X0, velocity), expected, rtol=1e-12)
+
+
+def test_the_navigated_velocity_error_is_the_navigation_s_own():
+    """``Σ_ev`` against the inertial navigation's formula, ``R_WB_nav (R_WBᵀ v + δ) − v``,
+    sampled: each entry within five standard errors of its sample."""
+    rng = np.random.default_rng(4)
+    n = 20000
+    model = RangeDifferenceKalmanFilter(
+        config(PaperKf, vehicle_motion="navigation"), setting=setting(navigation_errors=ERRORS)
+    ).error_model
+    v = np.array([1.2, -0.9, 0.3])
+    # The AHRS noise is on roll, pitch and yaw of the true attitude.
+    angles = RollPitchYaw(RotationMatrix(R_WB)).vector()
+    errors = np.empty((n, 3))
+    for j in range(n):
+        noisy = angles + ERRORS.attitude_noise * rng.standard_normal(3)
+        R_nav = RotationMatrix(RollPitchYaw(noisy)).matrix()
+        dvl = ERRORS.velocity_noise * rng.standard_normal(3) + ERRORS.velocity_bias * (
+            rng.standard_normal(3)
+        )
+        errors[j] = R_nav @ (R_WB.T @ v + dvl) - v
+    sample = np.cov(errors.T)
+    expected = model.velocity_covariance(v, R_WB)
+    # The standard error of a sample covariance entry: sqrt((Σ_ii Σ_jj + Σ_ij²) / n).
+    d = np.sqrt(np.diag(expected))
+    standard_error = np.sqrt((np.outer(d, d) ** 2 + expected**2) / n)
+    assert np.all(np.abs(sample - expected) < 5 * standard_error + 1e-9)
+
+
+def test_with_the_paper_s_timing_the_prediction_adds_the_navigation_s_process_noise():
+    """``A P Aᵀ + Q`` plus the commanded acceleration's error through the double integrator
+    (commanded motion), or plus ``t² Σ_ev`` on the position (navigated motion)."""
+    a = inputs()["u1_W"]
+    sigma_theta = rotation_vector_covariance(R_WB, ERRORS.attitude_noise)
+    A, Q = double_integrator(T)[0], process_noise_covariance(W, T)
+    kf = RangeDifferenceKalmanFilter(config(PaperKf), setting=setting(navigation_errors=ERRORS))
+    context = fixed_context(kf, **inputs())
+    P = kf.filtered(context).P
+    extra = process_noise_covariance(commanded_acceleration_noise(a, sigma_theta), T)
+    after = discrete_update(kf, context, 1).reshape(6, 6)
+    assert_allclose(after, A @ P @ A.T + Q + extra, rtol=1e-12)
+
+    nav = RangeDifferenceKalmanFilter(
+        config(PaperKf, vehicle_motion="navigation"), setting=setting(navigation_errors=ERRORS)
+    )
+    v = np.array([1.2, -0.4, 0.1])
+    values = {**inputs(), "p_WU_nav": np.zeros(3), "v_WU_nav": v}
+    del values["u1_W"]
+    context = fixed_context(nav, **values)
+    P = nav.filtered(context).P
+    velocity = (ERRORS.velocity_noise**2 + ERRORS.velocity_bias**2) * np.eye(3)
+    velocity += commanded_acceleration_noise(v, sigma_theta)
+    expected = A @ P @ A.T + Q
+    expected[:3, :3] += T * T * velocity
+    assert_allclose(discrete_update(nav, context, 1).reshape(6, 6), expected, rtol=1e-12)
 
 
 def test_the_ideal_model_believes_navigation_and_timing_perfect():

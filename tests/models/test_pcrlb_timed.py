@@ -81,9 +81,9 @@ def _velocity_map(time: float, steps: int) -> np.ndarray:
 
 def _batch_bound(tau, lag, p_TS, noise, P0, Ws, position_noise, tick) -> np.ndarray:
     """The posterior covariance of ``x(tick)`` from every ping arrived by ``tick``: one
-    linear-Gaussian problem on the whole history (no recursion)."""
+    linear-Gaussian problem on the whole history (no recursion); ``position_noise`` N×3×3."""
     steps = len(tau)
-    prior = [P0] + [block for k in range(steps) for block in (Ws[k], position_noise[k] * np.eye(3))]
+    prior = [P0] + [block for k in range(steps) for block in (Ws[k], position_noise[k])]
     information = np.linalg.inv(_block_diagonal(prior))
     for k in range(steps):
         counted = [i for i in (0, 1) if np.isfinite(tau[k, i]) and lag[k, i] <= tick - k]
@@ -110,10 +110,16 @@ def _block_diagonal(blocks: list[np.ndarray]) -> np.ndarray:
     return out
 
 
-@pytest.mark.parametrize("offsets, latency", [((0.0, 0.0), 0.0), ((0.1, 0.35), 0.0),
-                                              ((0.0, 0.25), 0.7), ((0.45, 0.2), 1.3)])  # fmt: skip
-def test_the_bound_is_the_batch_posterior_of_the_whole_history(offsets, latency) -> None:
-    """Against the information of every arrived ping on ``[x_0, ū_0, …]`` at once."""
+@pytest.mark.parametrize("offsets, latency, correlated", [
+    ((0.0, 0.0), 0.0, False), ((0.1, 0.35), 0.0, False), ((0.0, 0.25), 0.7, False),
+    ((0.45, 0.2), 1.3, False), ((0.0, 0.25), 0.7, True),
+])  # fmt: skip
+def test_the_bound_is_the_batch_posterior_of_the_whole_history(
+    offsets, latency, correlated
+) -> None:
+    """Against the information of every arrived ping on ``[x_0, ū_0, …]`` at once; the
+    position noise per axis, or a full 3×3 per step (the attitude noise turning a navigated
+    velocity)."""
     steps = 7
     rng = np.random.default_rng(2)
     tau, lag = _timing(steps, offsets, latency, rng)
@@ -122,10 +128,16 @@ def test_the_bound_is_the_batch_posterior_of_the_whole_history(offsets, latency)
     noise = _noise(steps, rng)
     P0 = np.diag([1.0, 2.0, 0.5, 0.3, 0.2, 0.1])
     Ws = W + 0.002 * rng.random((steps, 1, 1)) * np.eye(3)
-    position_noise = 1e-3 * rng.random(steps)
+    if correlated:
+        L = 0.03 * rng.standard_normal((steps, 3, 3))
+        position_noise = L @ np.swapaxes(L, 1, 2) + 1e-6 * np.eye(3)
+        blocks = position_noise
+    else:
+        position_noise = 1e-3 * rng.random(steps)
+        blocks = position_noise[:, None, None] * np.eye(3)
     bounds = pcrlb_timed(tau, lag, p_TS, noise, P0, Ws, T, position_noise=position_noise)
     for tick in range(steps):
-        expected = _batch_bound(tau, lag, p_TS, noise, P0, Ws, position_noise, tick)
+        expected = _batch_bound(tau, lag, p_TS, noise, P0, Ws, blocks, tick)
         assert_allclose(bounds[tick], expected, rtol=1e-9, atol=1e-12)
 
 
