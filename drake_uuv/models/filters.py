@@ -34,7 +34,7 @@ covariance.
 
 from __future__ import annotations
 
-from typing import Protocol
+from collections.abc import Callable
 
 import numpy as np
 
@@ -43,24 +43,12 @@ from drake_uuv.models.measurement import (
     range_measurement,
 )
 
-
-class RangeUpdate(Protocol):
-    """A Gaussian update on the raw ranges: :func:`ekf_update`, :func:`iekf_update`, or the
-    unscented :func:`~drake_uuv.models.unscented.unscented_range_update`.
-
-    ``(x_pred, P_pred, z, q_s, R, sonars=...) -> (x, P, nis)``: ``z`` the per-sonar sample
-    means, ``R`` their covariance, ``sonars`` the indices of the sonars that returned.
-    """
-
-    def __call__(
-        self,
-        x_pred: np.ndarray,
-        P_pred: np.ndarray,
-        z: np.ndarray,
-        q_s: np.ndarray,
-        R: np.ndarray,
-        sonars: tuple[int, ...] | np.ndarray = (0, 1),
-    ) -> tuple[np.ndarray, np.ndarray, float]: ...
+#: A Gaussian update on the raw ranges: :func:`ekf_update`, :func:`iekf_update`, or the
+#: unscented :func:`~drake_uuv.models.unscented.unscented_range_update`'s.
+#: ``(x_pred, P_pred, z, q_s, R, sonars=(0, 1)) -> (x, P, nis)``: ``z`` the per-sonar sample
+#: means, ``R`` their covariance, ``sonars`` the indices of the sonars that returned (the
+#: signature is :func:`ekf_update`'s).
+RangeUpdate = Callable[..., tuple[np.ndarray, np.ndarray, float]]
 
 
 def _symmetrise(P: np.ndarray) -> np.ndarray:

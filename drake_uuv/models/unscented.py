@@ -179,7 +179,7 @@ def ukf_range_update(
 
 def unscented_range_update(parameters: SigmaPointParameters = DEFAULT_PARAMETERS) -> RangeUpdate:
     """:func:`ukf_range_update` with its sigma-point parameters bound: a
-    :class:`~drake_uuv.models.filters.RangeUpdate`."""
+    :data:`~drake_uuv.models.filters.RangeUpdate`."""
     if not isinstance(parameters, SigmaPointParameters):
         raise ValueError(f"parameters: must be SigmaPointParameters, got {parameters!r}")
     parameters.spread(6)  # Fail early on a κ with n + κ ≤ 0.
