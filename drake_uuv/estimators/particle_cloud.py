@@ -5,12 +5,15 @@ discrete state, random input and cache entry on the filter that owns it, and its
 :mod:`drake_uuv.models.particle_filter`'s regularised particle filter.
 """
 
+import functools
 import math
+from collections.abc import Callable
 
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, DiscreteValues, ValueProducer
+from threadpoolctl import ThreadpoolController
 
 from drake_uuv.estimators.base import FilteredEstimate, RelativeStateEstimator
 from drake_uuv.estimators.timed_step import instant_ranges, instants
@@ -42,6 +45,26 @@ _SEED_BITS = 53
 # of about half the effective sample size (realistic scenario, seed 9: 3 particles of 5000
 # kept their weight and the run stopped; with the widening it ran to the end).
 _HANDOVER_WIDENING = 2.0
+
+_blas: ThreadpoolController | None = None
+
+
+def _on_one_blas_thread(method: Callable) -> Callable:
+    """Runs ``method`` with BLAS on one thread. The cloud's products (6×N by N, 6×6 by 6×N,
+    N by N) are split over threads by OpenBLAS from about 10⁴ elements on, and waking the
+    threads costs more than the product, the more so on a busy machine: the realistic run
+    (20 000 particles) took 13 s of CPU with the default threads against 3 s with one. A
+    study's runner already holds one thread per worker; this covers a run of its own."""
+
+    @functools.wraps(method)
+    def on_one_thread(*args, **kwargs):
+        global _blas
+        if _blas is None:  # after numpy's import, so that it finds numpy's BLAS
+            _blas = ThreadpoolController()
+        with _blas.limit(limits=1, user_api="blas"):
+            return method(*args, **kwargs)
+
+    return on_one_thread
 
 
 class ParticleCloud:
@@ -87,6 +110,7 @@ class ParticleCloud:
         # The steps' work arrays (0-3), the relative particles (4) and, with late ranges, the
         # particles of the window's steps (4 and 5 in turn).
         self._work = Workspace(n, arrays=5 if self._window is None else 6)
+        self._W_factor = np.linalg.cholesky(np.asarray(host.model[2], dtype=float))
         # The posterior, shared by the filtered output and the periodic update: (x, P, nis,
         # log weights, their weights or None, and with late ranges the first step's
         # (log weights, acceleration) once the window is full, else None).
@@ -142,10 +166,12 @@ class ParticleCloud:
         ranges, of the window's and this tick's ranges)."""
         return self._posterior.Eval(context)[:4]
 
+    @_on_one_blas_thread
     def _calc_posterior(self, context: Context, value: AbstractValue) -> None:
         if self._window is not None:
             value.set_value(self._window_posterior(context))
             return
+
         ranges = self._host.ranges(context)
         particles = self._relative(context, self._work[4])
         R = self._R if ranges.exact else ranges.covariance(self._R, self._host.prior(context).x)
@@ -242,6 +268,7 @@ class ParticleCloud:
         nis = float(sum(nis_total)) if nis_total else math.nan
         return x, P, nis, log_weights, None, first
 
+    @_on_one_blas_thread
     def advance_window(
         self,
         context: Context,
@@ -258,8 +285,7 @@ class ParticleCloud:
         rng = np.random.default_rng(int(u_seed * 2.0**_SEED_BITS))
         count = self._parameters.count
         D = self._window.schedule.window
-        _, _, W = host.model
-        L = np.linalg.cholesky(np.asarray(W, dtype=float))
+        L = self._W_factor
         out = discrete_state.get_mutable_value(self._particles_index).reshape(STATE_SIZE, count)
         u_next = discrete_state.get_mutable_value(self._accelerations_index).reshape(D, 3, count)
         if draw is not None:
@@ -296,6 +322,7 @@ class ParticleCloud:
         host.write_prediction(discrete_state, x, P)
         discrete_state.set_value(self._log_weights_index, log_weights)
 
+    @_on_one_blas_thread
     def advance(
         self,
         context: Context,
@@ -338,6 +365,7 @@ class ParticleCloud:
         _, log_weights, resampled = pf_predict(
             particles, log_weights, motion.acceleration(context), A, B, W, rng,
             self._parameters, weights=weights, moments=moments, work=work, out=out,
+            W_factor=self._W_factor,
         )  # fmt: skip
         if resampled or weights is None:
             weights = np.exp(log_weights)

@@ -227,15 +227,18 @@ def _range_terms(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(z, noise, h)`` of the sonars used: their means, their noise (the variances when
     the covariance is diagonal) and every particle's predicted ranges."""
-    rows = np.asarray(sonars, dtype=int).reshape(-1)
-    if rows.size == 0 or not set(rows.tolist()) <= {0, 1}:
+    rows = np.asarray(sonars, dtype=int).reshape(-1).tolist()
+    if not rows or not set(rows) <= {0, 1}:
         raise ValueError(f"sonars: must be a non-empty subset of (0, 1), got {sonars!r}")
+    both = rows == [0, 1]
     z = np.asarray(z, dtype=float).reshape(2)[rows]
-    R = np.asarray(R, dtype=float)[np.ix_(rows, rows)]
+    R = np.asarray(R, dtype=float)
+    R = R if both else R[np.ix_(rows, rows)]
     # Independent ranges (the sonars' own noise): the diagonal's cheaper likelihood.
-    noise = np.diag(R) if np.count_nonzero(R - np.diag(np.diag(R))) == 0 else R
+    independent = R.shape == (1, 1) or (R[0, 1] == 0.0 and R[1, 0] == 0.0)
+    noise = np.diag(R) if independent else R
     predicted = particle_ranges(particles, q_s)
-    return z, noise, predicted if rows.tolist() == [0, 1] else predicted[rows]
+    return z, noise, predicted if both else predicted[rows]
 
 
 def pf_update(
@@ -279,9 +282,13 @@ def systematic_resample(weights: np.ndarray, u: float) -> np.ndarray:
     per position in ``[cdf_{j−1}, cdf_j)``, i.e. ``⌈N cdf_j − u⌉ − ⌈N cdf_{j−1} − u⌉`` times.
     """
     n = weights.size
-    edges = np.ceil(np.cumsum(weights) * n - u)
+    edges = np.cumsum(weights)
+    edges *= n
+    edges -= u
+    np.ceil(edges, out=edges)
     edges[-1] = n  # rounding must not lose or add a copy
-    counts = np.diff(np.clip(edges, 0, n), prepend=0.0).astype(np.int64)
+    np.clip(edges, 0, n, out=edges)
+    counts = np.diff(edges, prepend=0.0).astype(np.int64)
     return np.repeat(np.arange(n), counts)
 
 
@@ -322,6 +329,7 @@ def pf_predict(
     moments: tuple[np.ndarray, np.ndarray] | None = None,
     work: Workspace | None = None,
     out: np.ndarray | None = None,
+    W_factor: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Resample if degenerate, regularise, and move the particles to ``k+1``.
 
@@ -329,7 +337,8 @@ def pf_predict(
     :func:`pf_update`); ``a_W`` the applied world acceleration; ``W`` the target's
     acceleration covariance. Returns the predicted particles (6×N; in ``out`` when given),
     their log weights and whether the step resampled. ``weights``, ``moments``: see
-    :func:`resample_regularised`.
+    :func:`resample_regularised`; ``W_factor``: ``W``'s Cholesky factor, when the caller
+    keeps it.
     """
     n = particles.shape[1]
     particles, log_weights, chosen = resample_regularised(
@@ -337,7 +346,7 @@ def pf_predict(
     )
     # x⁺ = A x + B (a_W − ū): the known acceleration once, the target's per particle.
     draws = rng.standard_normal(out=_buffer(work, 3, 3, n))
-    L = np.linalg.cholesky(np.asarray(W, dtype=float))
+    L = np.linalg.cholesky(np.asarray(W, dtype=float)) if W_factor is None else W_factor
     noise = np.matmul(L, draws, out=_buffer(work, 1, 3, n))
     moved = np.matmul(A, particles, out=np.empty((STATE_SIZE, n)) if out is None else out)
     moved += (B @ np.asarray(a_W, dtype=float).reshape(3))[:, None]
