@@ -391,7 +391,10 @@ def resample_regularised(
 
 def normalised(log_weights: np.ndarray) -> np.ndarray:
     """The weights of log weights, normalised to sum 1."""
-    w = np.exp(log_weights - log_weights.max())
+    top = log_weights.max()
+    if top == log_weights.min() and math.isfinite(top):  # equal (after a resampling)
+        return np.full(log_weights.size, 1.0 / log_weights.size)  # exp(0) / N, the same bits
+    w = np.exp(log_weights - top)
     return w / w.sum()
 
 
