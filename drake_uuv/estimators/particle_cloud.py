@@ -46,7 +46,7 @@ _SEED_BITS = 53
 # kept their weight and the run stopped; with the widening it ran to the end).
 _HANDOVER_WIDENING = 2.0
 
-_blas: ThreadpoolController | None = None
+_blas: list | None = None
 
 
 def _on_one_blas_thread(method: Callable) -> Callable:
@@ -54,15 +54,23 @@ def _on_one_blas_thread(method: Callable) -> Callable:
     N by N) are split over threads by OpenBLAS from about 10⁴ elements on, and waking the
     threads costs more than the product, the more so on a busy machine: the realistic run
     (20 000 particles) took 13 s of CPU with the default threads against 3 s with one. A
-    study's runner already holds one thread per worker; this covers a run of its own."""
+    study's runner already holds one thread per worker; this covers a run of its own. The
+    BLAS libraries are found once and their thread counts read and set directly (about 3 µs
+    a call, where ``ThreadpoolController.limit`` inspects every library each time, 20 µs)."""
 
     @functools.wraps(method)
     def on_one_thread(*args, **kwargs):
         global _blas
         if _blas is None:  # after numpy's import, so that it finds numpy's BLAS
-            _blas = ThreadpoolController()
-        with _blas.limit(limits=1, user_api="blas"):
+            _blas = ThreadpoolController().select(user_api="blas").lib_controllers
+        changed = [(blas, n) for blas in _blas if (n := blas.num_threads) != 1]
+        for blas, _ in changed:
+            blas.set_num_threads(1)
+        try:
             return method(*args, **kwargs)
+        finally:
+            for blas, n in changed:
+                blas.set_num_threads(n)
 
     return on_one_thread
 
