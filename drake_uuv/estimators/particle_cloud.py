@@ -26,8 +26,9 @@ from drake_uuv.models.particle_filter import (
     initial_particles,
     normalised,
     pf_predict,
-    pf_weigh,
+    range_terms,
     resample_regularised,
+    weigh,
     weighted_moments,
 )
 from drake_uuv.models.timing import transition
@@ -184,10 +185,8 @@ class ParticleCloud:
         particles = self._relative(context, self._work[4])
         R = self._R if ranges.exact else ranges.covariance(self._R, self._host.prior(context).x)
         # pf_update, keeping the weights for the periodic update's resampling.
-        nis, log_weights = pf_weigh(
-            particles, self.log_weights(context), ranges.z, ranges.q_s, R, ranges.sonars,
-            self._work,
-        )  # fmt: skip
+        terms = range_terms(particles, ranges.z, ranges.q_s, R, ranges.sonars, self._work)
+        nis, log_weights = weigh(self.log_weights(context), *terms, self._work)
         weights = np.exp(log_weights)
         x, P = weighted_moments(particles, weights, self._work)
         value.set_value((x, P, nis, log_weights, weights, None))
@@ -235,8 +234,10 @@ class ParticleCloud:
             q_s = step.attitude(instant.tau, t) @ host.baseline
             ranges = instant_ranges(host, instant, q_s, step)
             R = ranges.covariance(self._R, moved @ normalised(log_weights))
-            nis, log_weights = pf_weigh(
-                moved, log_weights, ranges.z, q_s, R, ranges.sonars, self._work
+            nis, log_weights = weigh(
+                log_weights,
+                *range_terms(moved, ranges.z, q_s, R, ranges.sonars, self._work),
+                self._work,
             )
             if np.any(step.new[instant.sonars]):
                 new_nis.append(nis)
@@ -268,8 +269,10 @@ class ParticleCloud:
         ranges = host.ranges(context)  # this tick's own pings (no latency, at the tick)
         if ranges.valid.any():
             R = ranges.covariance(self._R, relative @ normalised(log_weights))
-            nis, log_weights = pf_weigh(
-                relative, log_weights, ranges.z, ranges.q_s, R, ranges.sonars, work
+            nis, log_weights = weigh(
+                log_weights,
+                *range_terms(relative, ranges.z, ranges.q_s, R, ranges.sonars, work),
+                work,
             )
             nis_total.append(nis)
         x, P = weighted_moments(relative, normalised(log_weights), work)
@@ -354,8 +357,10 @@ class ParticleCloud:
             log_weights = np.full(count, -math.log(count))
             if weigh_draw:
                 ranges = host.ranges(context)
-                log_weights = pf_weigh(
-                    particles, log_weights, ranges.z, ranges.q_s, self._R, ranges.sonars, work
+                log_weights = weigh(
+                    log_weights,
+                    *range_terms(particles, ranges.z, ranges.q_s, self._R, ranges.sonars, work),
+                    work,
                 )[1]
         else:
             particles = self._relative(context, work[4])

@@ -227,7 +227,7 @@ def reweight(
     return x, P, nis, log_posterior
 
 
-def _range_terms(
+def range_terms(
     particles: np.ndarray,
     z: np.ndarray,
     q_s: np.ndarray,
@@ -236,7 +236,8 @@ def _range_terms(
     work: Workspace | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(z, noise, h)`` of the sonars used: their means, their noise (the variances when
-    the covariance is diagonal) and every particle's predicted ranges."""
+    the covariance is diagonal) and every particle's predicted ranges; :func:`weigh` of them
+    is :func:`pf_update` without the posterior's moments."""
     rows = np.asarray(sonars, dtype=int).reshape(-1).tolist()
     if not rows or not set(rows) <= {0, 1}:
         raise ValueError(f"sonars: must be a non-empty subset of (0, 1), got {sonars!r}")
@@ -270,21 +271,8 @@ def pf_update(
     See :func:`reweight` for the returned values (NIS χ² with ``len(sonars)`` degrees of
     freedom when consistent).
     """
-    terms = _range_terms(particles, z, q_s, R, sonars, work)
+    terms = range_terms(particles, z, q_s, R, sonars, work)
     return reweight(particles, log_weights, *terms, work)
-
-
-def pf_weigh(
-    particles: np.ndarray,
-    log_weights: np.ndarray,
-    z: np.ndarray,
-    q_s: np.ndarray,
-    R: np.ndarray,
-    sonars: tuple[int, ...] | np.ndarray = (0, 1),
-    work: Workspace | None = None,
-) -> tuple[float, np.ndarray]:
-    """:func:`pf_update`'s NIS and posterior log weights alone (:func:`weigh`)."""
-    return weigh(log_weights, *_range_terms(particles, z, q_s, R, sonars, work), work)
 
 
 def systematic_resample(weights: np.ndarray, u: float) -> np.ndarray:

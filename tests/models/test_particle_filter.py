@@ -21,10 +21,11 @@ from drake_uuv.models.particle_filter import (
     particle_ranges,
     pf_predict,
     pf_update,
-    pf_weigh,
+    range_terms,
     reweight,
     shrinkage_kernel,
     systematic_resample,
+    weigh,
     weighted_moments,
 )
 from tests.conftest import W
@@ -189,7 +190,7 @@ def test_steps_in_a_workspace_give_the_bits_of_fresh_arrays(threshold):
 
     def steps(work):
         x, P, nis, log_post = pf_update(particles, log_w, z, q_s, R, work=work)
-        weighed = pf_weigh(particles, log_w, z, q_s, R, (1,), work)
+        weighed = weigh(log_w, *range_terms(particles, z, q_s, R, (1,), work), work)
         moved, log_next, resampled = pf_predict(
             particles, log_post, np.array([0.1, 0.0, 0.0]), A, B, W,
             np.random.default_rng(6), params, work=work,
