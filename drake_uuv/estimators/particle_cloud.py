@@ -233,12 +233,10 @@ class ParticleCloud:
                 moved += step.vehicle(instant.tau, t)[:, np.newaxis]
             q_s = step.attitude(instant.tau, t) @ host.baseline
             ranges = instant_ranges(host, instant, q_s, step)
-            R = ranges.covariance(self._R, moved @ normalised(log_weights))
-            nis, log_weights = weigh(
-                log_weights,
-                *range_terms(moved, ranges.z, q_s, R, ranges.sonars, self._work),
-                self._work,
-            )
+            prior = normalised(log_weights)  # for the error model's mean and the weighing
+            R = self._R if ranges.exact else ranges.covariance(self._R, moved @ prior)
+            terms = range_terms(moved, ranges.z, q_s, R, ranges.sonars, self._work)
+            nis, log_weights = weigh(log_weights, *terms, self._work, prior)
             if np.any(step.new[instant.sonars]):
                 new_nis.append(nis)
         G, B = transition(t)
@@ -268,12 +266,10 @@ class ParticleCloud:
         relative = np.add(particles, offset[:, np.newaxis], out=work[2])
         ranges = host.ranges(context)  # this tick's own pings (no latency, at the tick)
         if ranges.valid.any():
-            R = ranges.covariance(self._R, relative @ normalised(log_weights))
-            nis, log_weights = weigh(
-                log_weights,
-                *range_terms(relative, ranges.z, ranges.q_s, R, ranges.sonars, work),
-                work,
-            )
+            prior = normalised(log_weights)
+            R = self._R if ranges.exact else ranges.covariance(self._R, relative @ prior)
+            terms = range_terms(relative, ranges.z, ranges.q_s, R, ranges.sonars, work)
+            nis, log_weights = weigh(log_weights, *terms, work, prior)
             nis_total.append(nis)
         x, P = weighted_moments(relative, normalised(log_weights), work)
         nis = float(sum(nis_total)) if nis_total else math.nan

@@ -185,12 +185,15 @@ def weigh(
     variances: np.ndarray,
     predicted: np.ndarray,
     work: Workspace | None = None,
+    weights: np.ndarray | None = None,
 ) -> tuple[float, np.ndarray]:
     """:func:`reweight`'s NIS and normalised posterior log weights, without the posterior's
-    moments (for a step that only carries the weights on)."""
+    moments (for a step that only carries the weights on). ``weights``:
+    ``normalised(log_weights)``, when the caller has them."""
     z = np.asarray(z, dtype=float).reshape(-1)
     noise = np.asarray(variances, dtype=float)
-    z_hat, S = weighted_moments(predicted, normalised(log_weights), work)
+    prior = normalised(log_weights) if weights is None else weights
+    z_hat, S = weighted_moments(predicted, prior, work)
     S = S + (noise if noise.ndim == 2 else np.diag(noise.reshape(-1)))
     nu = z - z_hat
     nis = float(nu @ np.linalg.solve(S, nu))

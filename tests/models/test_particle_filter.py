@@ -18,6 +18,7 @@ from drake_uuv.models.particle_filter import (
     defensive_draw,
     effective_sample_size,
     initial_particles,
+    normalised,
     particle_ranges,
     pf_predict,
     pf_update,
@@ -191,6 +192,11 @@ def test_steps_in_a_workspace_give_the_bits_of_fresh_arrays(threshold):
     def steps(work):
         x, P, nis, log_post = pf_update(particles, log_w, z, q_s, R, work=work)
         weighed = weigh(log_w, *range_terms(particles, z, q_s, R, (1,), work), work)
+        given = weigh(
+            log_w, *range_terms(particles, z, q_s, R, (1,), work), work, normalised(log_w)
+        )
+        assert_array_equal(given[1], weighed[1])
+        assert given[0] == weighed[0]
         moved, log_next, resampled = pf_predict(
             particles, log_post, np.array([0.1, 0.0, 0.0]), A, B, W,
             np.random.default_rng(6), params, work=work,
