@@ -353,11 +353,8 @@ class ParticleCloud:
             log_weights = np.full(count, -math.log(count))
             if weigh_draw:
                 ranges = host.ranges(context)
-                log_weights = weigh(
-                    log_weights,
-                    *range_terms(particles, ranges.z, ranges.q_s, self._R, ranges.sonars, work),
-                    work,
-                )[1]
+                terms = range_terms(particles, ranges.z, ranges.q_s, self._R, ranges.sonars, work)
+                log_weights = weigh(log_weights, *terms, work)[1]
         else:
             particles = self._relative(context, work[4])
             if filtered.status == VALID:  # this step's ranges reweight the cloud
