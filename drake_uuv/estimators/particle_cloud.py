@@ -5,12 +5,15 @@ discrete state, random input and cache entry on the filter that owns it, and its
 :mod:`drake_uuv.models.particle_filter`'s regularised particle filter.
 """
 
+import functools
 import math
+from collections.abc import Callable
 
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, DiscreteValues, ValueProducer
+from threadpoolctl import ThreadpoolController
 
 from drake_uuv.estimators.base import FilteredEstimate, RelativeStateEstimator
 from drake_uuv.estimators.timed_step import instant_ranges, instants
@@ -18,12 +21,14 @@ from drake_uuv.models.measurement import VALID
 from drake_uuv.models.particle_filter import (
     STATE_SIZE,
     ParticleFilterParameters,
+    Workspace,
     defensive_draw,
     initial_particles,
     normalised,
     pf_predict,
-    pf_update,
+    range_terms,
     resample_regularised,
+    weigh,
     weighted_moments,
 )
 from drake_uuv.models.timing import transition
@@ -41,6 +46,34 @@ _SEED_BITS = 53
 # of about half the effective sample size (realistic scenario, seed 9: 3 particles of 5000
 # kept their weight and the run stopped; with the widening it ran to the end).
 _HANDOVER_WIDENING = 2.0
+
+_blas: list | None = None
+
+
+def _on_one_blas_thread(method: Callable) -> Callable:
+    """Runs ``method`` with BLAS on one thread. The cloud's products (6×N by N, 6×6 by 6×N,
+    N by N) are split over threads by OpenBLAS from about 10⁴ elements on, and waking the
+    threads costs more than the product, the more so on a busy machine: the realistic run
+    (20 000 particles) took 13 s of CPU with the default threads against 3 s with one. A
+    study's runner already holds one thread per worker; this covers a run of its own. The
+    BLAS libraries are found once and their thread counts read and set directly (about 3 µs
+    a call, where ``ThreadpoolController.limit`` inspects every library each time, 20 µs)."""
+
+    @functools.wraps(method)
+    def on_one_thread(*args, **kwargs):
+        global _blas
+        if _blas is None:  # after numpy's import, so that it finds numpy's BLAS
+            _blas = ThreadpoolController().select(user_api="blas").lib_controllers
+        changed = [(blas, n) for blas in _blas if (n := blas.num_threads) != 1]
+        for blas, _ in changed:
+            blas.set_num_threads(1)
+        try:
+            return method(*args, **kwargs)
+        finally:
+            for blas, n in changed:
+                blas.set_num_threads(n)
+
+    return on_one_thread
 
 
 class ParticleCloud:
@@ -83,12 +116,18 @@ class ParticleCloud:
         if self._window is not None:  # each particle's target acceleration over each step
             D = self._window.schedule.window
             self._accelerations_index = host.DeclareDiscreteState(np.zeros(D * 3 * n))
-        # The posterior log weights, shared by the filtered output and the periodic update.
+        # The steps' work arrays (0-3), the relative particles (4) and, with late ranges, the
+        # particles of the window's steps (4 and 5 in turn).
+        self._work = Workspace(n, arrays=5 if self._window is None else 6)
+        self._W_factor = np.linalg.cholesky(np.asarray(host.model[2], dtype=float))
+        # The posterior, shared by the filtered output and the periodic update: (x, P, nis,
+        # log weights, their weights or None, and with late ranges the first step's
+        # (log weights, acceleration) once the window is full, else None).
         self._posterior = host.DeclareCacheEntry(
             "particle posterior",
             ValueProducer(
                 allocate=AbstractValue.Make(
-                    (np.zeros(6), np.eye(6), math.nan, np.zeros(n), None)
+                    (np.zeros(6), np.eye(6), math.nan, np.zeros(n), None, None)
                 ).Clone,
                 calc=self._calc_posterior,
             ),
@@ -101,12 +140,20 @@ class ParticleCloud:
 
     def particles(self, context: Context) -> np.ndarray:
         """The predicted particles of this step as a 6×N array of relative states ``Υ``."""
-        value = context.get_discrete_state(self._particles_index).get_value()
-        particles = value.reshape(STATE_SIZE, self._parameters.count)
+        return self._relative(context, None)
+
+    def _relative(self, context: Context, out: np.ndarray | None) -> np.ndarray:
+        """:meth:`particles`, in ``out`` when the stored frame is not the relative one."""
+        particles = self._stored(context)
         motion = self._host.vehicle_motion
         if motion.state_ports:  # stored less the vehicle's state: add X of the step
-            return particles + motion.offset(context)[:, np.newaxis]
+            return np.add(particles, motion.offset(context)[:, np.newaxis], out=out)
         return particles
+
+    def _stored(self, context: Context) -> np.ndarray:
+        """The predicted particles as stored (6×N, a view of the state)."""
+        value = context.get_discrete_state(self._particles_index).get_value()
+        return value.reshape(STATE_SIZE, self._parameters.count)
 
     def set_particles(
         self, context: Context, particles: np.ndarray, log_weights: np.ndarray
@@ -128,21 +175,21 @@ class ParticleCloud:
         ranges, of the window's and this tick's ranges)."""
         return self._posterior.Eval(context)[:4]
 
+    @_on_one_blas_thread
     def _calc_posterior(self, context: Context, value: AbstractValue) -> None:
         if self._window is not None:
             value.set_value(self._window_posterior(context))
             return
+
         ranges = self._host.ranges(context)
-        particles = self.particles(context)
+        particles = self._relative(context, self._work[4])
         R = self._R if ranges.exact else ranges.covariance(self._R, self._host.prior(context).x)
-        value.set_value(
-            (
-                *pf_update(
-                    particles, self.log_weights(context), ranges.z, ranges.q_s, R, ranges.sonars
-                ),
-                None,
-            )
-        )
+        # pf_update, keeping the weights for the periodic update's resampling.
+        terms = range_terms(particles, ranges.z, ranges.q_s, R, ranges.sonars, self._work)
+        nis, log_weights = weigh(self.log_weights(context), *terms, self._work)
+        weights = np.exp(log_weights)
+        x, P = weighted_moments(particles, weights, self._work)
+        value.set_value((x, P, nis, log_weights, weights, None))
 
     # ----------------------------------------------------------------------- late ranges
 
@@ -159,60 +206,76 @@ class ParticleCloud:
         steps, _ = self._window.steps(context, samples.reshape(2, -1), status)
         return steps
 
+    def _move(
+        self, particles: np.ndarray, u: np.ndarray, G: np.ndarray, c: np.ndarray, out: np.ndarray
+    ) -> np.ndarray:
+        """``G [xᵢ; uᵢ] + c`` of every particle (its state at a ping or the next tick), in
+        ``out``."""
+        moved = np.matmul(G[:, :STATE_SIZE], particles, out=out)
+        moved += np.matmul(G[:, STATE_SIZE:], u, out=self._work[3])
+        moved += c[:, np.newaxis]
+        return moved
+
     def _step(
-        self, particles: np.ndarray, log_weights: np.ndarray, u: np.ndarray, step
+        self, particles: np.ndarray, log_weights: np.ndarray, u: np.ndarray, step, out: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, list[float]]:
         """The stored-frame particles at a step's tick, reweighted by its arrived ranges at
-        their ping times along each particle's path, and moved to the next tick."""
+        their ping times along each particle's path, and moved to the next tick (in
+        ``out``)."""
         host = self._host
         t = host.time_step
         a = np.zeros(3) if host.error_model.navigated_motion else step.acceleration
         new_nis = []
         for instant in instants(step, paired=False):
             G, B = transition(instant.tau)
-            moved = G[:, :6] @ particles + G[:, 6:] @ u + (B @ a)[:, np.newaxis]
+            moved = self._move(particles, u, G, B @ a, self._work[2])
             if host.error_model.navigated_motion:
-                moved = moved + step.vehicle(instant.tau, t)[:, np.newaxis]
+                moved += step.vehicle(instant.tau, t)[:, np.newaxis]
             q_s = step.attitude(instant.tau, t) @ host.baseline
             ranges = instant_ranges(host, instant, q_s, step)
-            R = ranges.covariance(self._R, weighted_moments(moved, normalised(log_weights))[0])
-            _, _, nis, log_weights = pf_update(moved, log_weights, ranges.z, q_s, R, ranges.sonars)
+            prior = normalised(log_weights)  # for the error model's mean and the weighing
+            R = self._R if ranges.exact else ranges.covariance(self._R, moved @ prior)
+            terms = range_terms(moved, ranges.z, q_s, R, ranges.sonars, self._work)
+            nis, log_weights = weigh(log_weights, *terms, self._work, prior)
             if np.any(step.new[instant.sonars]):
                 new_nis.append(nis)
         G, B = transition(t)
-        particles = G[:, :6] @ particles + G[:, 6:] @ u + (B @ a)[:, np.newaxis]
-        return particles, log_weights, new_nis
+        return self._move(particles, u, G, B @ a, out), log_weights, new_nis
 
     def _window_posterior(self, context: Context) -> tuple:
-        """``(x, P, nis, log_weights)`` at this tick from the anchor's cloud stepped through
-        the window, and the first step's result (the next anchor) appended."""
+        """``(x, P, nis, log_weights, None, first)`` at this tick from the anchor's cloud
+        stepped through the window, then this tick's ranges; ``first`` the first step's log
+        weights and acceleration when its ranges have all arrived (the periodic update
+        resamples with them)."""
         host = self._host
+        work = self._work
         j = self._window.tick(context)
         D = self._window.schedule.window
-        particles = context.get_discrete_state(self._particles_index).get_value()
-        particles = particles.reshape(STATE_SIZE, self._parameters.count)
+        particles = self._stored(context)
         log_weights = self.log_weights(context)
         u = self.accelerations(context)
         nis_total, first = [], None
-        for step in self._window_steps(context):
+        for i, step in enumerate(self._window_steps(context)):
             particles, log_weights, new_nis = self._step(
-                particles, log_weights, u[step.step - (j - D)], step
+                particles, log_weights, u[step.step - (j - D)], step, work[4 + i % 2]
             )
             nis_total += new_nis
             if first is None and j >= D:
-                first = (particles, log_weights)
-        relative = particles + host.vehicle_motion.offset(context)[:, np.newaxis]
+                first = (log_weights, step.acceleration)
+        offset = host.vehicle_motion.offset(context)
+        relative = np.add(particles, offset[:, np.newaxis], out=work[2])
         ranges = host.ranges(context)  # this tick's own pings (no latency, at the tick)
-        nis = math.nan
         if ranges.valid.any():
-            R = ranges.covariance(self._R, weighted_moments(relative, normalised(log_weights))[0])
-            _, _, nis, log_weights = pf_update(
-                relative, log_weights, ranges.z, ranges.q_s, R, ranges.sonars
-            )
+            prior = normalised(log_weights)
+            R = self._R if ranges.exact else ranges.covariance(self._R, relative @ prior)
+            terms = range_terms(relative, ranges.z, ranges.q_s, R, ranges.sonars, work)
+            nis, log_weights = weigh(log_weights, *terms, work, prior)
             nis_total.append(nis)
-        x, P = weighted_moments(relative, normalised(log_weights))
-        return x, P, float(sum(nis_total)) if nis_total else math.nan, log_weights, first
+        x, P = weighted_moments(relative, normalised(log_weights), work)
+        nis = float(sum(nis_total)) if nis_total else math.nan
+        return x, P, nis, log_weights, None, first
 
+    @_on_one_blas_thread
     def advance_window(
         self,
         context: Context,
@@ -224,41 +287,49 @@ class ParticleCloud:
         own acceleration) or drawn from ``N(draw)`` (stored frame, at the new anchor); a new
         acceleration per particle for the window's newest step."""
         host = self._host
+        work = self._work
         u_seed = float(self._seed_port.Eval(context)[0])
         rng = np.random.default_rng(int(u_seed * 2.0**_SEED_BITS))
         count = self._parameters.count
         D = self._window.schedule.window
-        _, _, W = host.model
-        L = np.linalg.cholesky(np.asarray(W, dtype=float))
-        u = self.accelerations(context)
+        L = self._W_factor
+        out = discrete_state.get_mutable_value(self._particles_index).reshape(STATE_SIZE, count)
+        u_next = discrete_state.get_mutable_value(self._accelerations_index).reshape(D, 3, count)
         if draw is not None:
             particles, log_weights = defensive_draw(
                 draw[0], draw[1], count, rng, _HANDOVER_WIDENING
             )
-            u = np.stack([L @ rng.standard_normal((3, count)) for _ in range(D)])
+            out[...] = particles
+            for k in range(D):
+                np.matmul(L, rng.standard_normal((3, count)), out=u_next[k])
         else:
-            particles = context.get_discrete_state(self._particles_index).get_value()
-            particles = particles.reshape(STATE_SIZE, count)
+            particles = self._stored(context)
             log_weights = self.log_weights(context)
-            first = self._posterior.Eval(context)[4]
-            if first is not None:  # the oldest step's ranges have all arrived
-                steps = self._window_steps(context)
-                weighed = self._step(particles, log_weights, u[0], steps[0])[1]
+            u = self.accelerations(context)
+            first = self._posterior.Eval(context)[5]
+            if first is None:
+                out[...] = particles
+                u_next[:-1] = u[1:]
+            else:  # the oldest step's ranges have all arrived: the posterior weighed them
+                weighed, acceleration = first
                 particles, log_weights, chosen = resample_regularised(
-                    particles, weighed, rng, self._parameters
+                    particles, weighed, rng, self._parameters, work=work
                 )
-                if chosen is not None:
-                    u = u[:, :, chosen]
-                a = np.zeros(3) if host.error_model.navigated_motion else steps[0].acceleration
+                u_first = u[0]
+                if chosen is None:
+                    u_next[:-1] = u[1:]
+                else:  # each particle's path follows it
+                    u_first = np.take(u_first, chosen, axis=1, out=work[1][:3], mode="clip")
+                    np.take(u[1:], chosen, axis=2, out=u_next[:-1], mode="clip")
+                a = np.zeros(3) if host.error_model.navigated_motion else acceleration
                 G, B = transition(host.time_step)
-                particles = G[:, :6] @ particles + G[:, 6:] @ u[0] + (B @ a)[:, np.newaxis]
-            u = np.concatenate([u[1:], (L @ rng.standard_normal((3, count)))[np.newaxis]])
-        x, P = weighted_moments(particles, normalised(log_weights))
+                self._move(particles, u_first, G, B @ a, out)
+            np.matmul(L, rng.standard_normal(out=work[3][:3]), out=u_next[-1])
+        x, P = weighted_moments(out, normalised(log_weights), work)
         host.write_prediction(discrete_state, x, P)
-        discrete_state.set_value(self._particles_index, particles.ravel())
         discrete_state.set_value(self._log_weights_index, log_weights)
-        discrete_state.set_value(self._accelerations_index, u.ravel())
 
+    @_on_one_blas_thread
     def advance(
         self,
         context: Context,
@@ -272,32 +343,38 @@ class ParticleCloud:
         ``filtered`` applied an update), resampled, regularised and predicted; the host's
         prediction becomes the predicted cloud's mean and covariance."""
         host = self._host
+        work = self._work
         u = float(self._seed_port.Eval(context)[0])
         rng = np.random.default_rng(int(u * 2.0**_SEED_BITS))
         count = self._parameters.count
+        weights = moments = None
         if draw is not None:
             particles = initial_particles(draw[0], draw[1], count, rng)
             log_weights = np.full(count, -math.log(count))
             if weigh_draw:
                 ranges = host.ranges(context)
-                log_weights = pf_update(
-                    particles, log_weights, ranges.z, ranges.q_s, self._R, ranges.sonars
-                )[3]
+                terms = range_terms(particles, ranges.z, ranges.q_s, self._R, ranges.sonars, work)
+                log_weights = weigh(log_weights, *terms, work)[1]
         else:
-            particles = self.particles(context)
+            particles = self._relative(context, work[4])
             if filtered.status == VALID:  # this step's ranges reweight the cloud
-                log_weights = self.posterior(context)[3]
+                x, P, _, log_weights, weights, _ = self._posterior.Eval(context)
+                moments = (x, P)
             else:  # no update, or one the gate rejected: the prediction's weights stand
                 log_weights = self.log_weights(context)
         motion = host.vehicle_motion
         if motion.state_ports:  # back to the stored frame: the target's particles, negated
-            particles = particles - motion.offset(context)[:, np.newaxis]
+            particles = np.subtract(particles, motion.offset(context)[:, np.newaxis], out=work[4])
+            moments = None  # the posterior's are of the relative particles
         A, B, W = host.model
-        particles, log_weights, _ = pf_predict(
+        out = discrete_state.get_mutable_value(self._particles_index).reshape(STATE_SIZE, count)
+        _, log_weights, resampled = pf_predict(
             particles, log_weights, motion.acceleration(context), A, B, W, rng,
-            self._parameters,
+            self._parameters, weights=weights, moments=moments, work=work, out=out,
+            W_factor=self._W_factor,
         )  # fmt: skip
-        x, P = weighted_moments(particles, np.exp(log_weights))
+        if resampled or weights is None:
+            weights = np.exp(log_weights)
+        x, P = weighted_moments(out, weights, work)
         host.write_prediction(discrete_state, x, P)
-        discrete_state.set_value(self._particles_index, particles.ravel())
         discrete_state.set_value(self._log_weights_index, log_weights)

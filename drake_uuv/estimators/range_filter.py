@@ -196,12 +196,10 @@ class RangeFilter(RelativeStateEstimator):
     ) -> None:
         phase = self.phase(context)
         timed = self.window is not None
-        if not (timed and phase is Phase.PARTICLE):
-            super().advance(context, filtered, discrete_state)
         done = self.linear_updates(context)
-        ranges = self.ranges(context)
         transition = Transition(phase)
         if phase is Phase.LINEAR:
+            ranges = self.ranges(context)
             updates = self._linear_updates(context, filtered, ranges)
             S = self._start.advance(context, filtered, updates, discrete_state)
             if filtered.applied:
@@ -209,12 +207,19 @@ class RangeFilter(RelativeStateEstimator):
                 transition = self._policy.next_phase(
                     phase, self._evidence(filtered, done, S, ranges)
                 )
-        elif filtered.applied:
+        elif filtered.applied and (
+            phase is not Phase.PARTICLE or self._gaussian_update is not None
+        ):
+            # (Particles hand over only to a Gaussian update: without one they stay.)
             S = self._start.prior_share(context)
-            transition = self._policy.next_phase(phase, self._evidence(filtered, done, S, ranges))
+            evidence = self._evidence(filtered, done, S, self.ranges(context))
+            transition = self._policy.next_phase(phase, evidence)
         discrete_state.set_value(self._phase_index, np.array([float(transition.phase), done]))
         if transition.phase is not Phase.PARTICLE:
+            if not (timed and phase is Phase.PARTICLE):
+                super().advance(context, filtered, discrete_state)
             return
+        # The cloud writes the prediction: the Gaussian one is not computed.
         if timed:
             self._advance_window_particles(context, filtered, discrete_state, phase, transition)
             return

@@ -39,18 +39,22 @@ def range_measurement(x: np.ndarray, q_s: np.ndarray) -> np.ndarray:
     return np.array([np.linalg.norm(q + half), np.linalg.norm(q - half)])
 
 
-def batch_ranges(q: np.ndarray, q_s: np.ndarray) -> np.ndarray:
+def batch_ranges(q: np.ndarray, q_s: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """The ranges ``[|q + ½ q_s|, |q − ½ q_s|]`` of many relative positions at once.
 
-    ``q`` is 3×N (one position per column, e.g. particles or sigma points); returns 2×N.
-    From ``|q ± ½ q_s|² = |q|² ± q_sᵀ q + ¼|q_s|²``: one squared norm and one projection for
-    both sonars.
+    ``q`` is 3×N (one position per column, e.g. particles or sigma points); returns 2×N (in
+    ``out`` when given). From ``|q ± ½ q_s|² = |q|² ± q_sᵀ q + ¼|q_s|²``: one squared norm and
+    one projection for both sonars.
     """
     q_s = np.asarray(q_s, dtype=float).reshape(3)
-    squared = np.einsum("ij,ij->j", q, q) + 0.25 * float(q_s @ q_s)
+    squared = np.einsum("ij,ij->j", q, q)
+    squared += 0.25 * float(q_s @ q_s)
     projection = q_s @ q
-    squared = np.stack([squared + projection, squared - projection])
-    return np.sqrt(np.maximum(squared, 0.0, out=squared), out=squared)
+    if out is None:
+        out = np.empty((2, squared.size))
+    np.add(squared, projection, out=out[0])
+    np.subtract(squared, projection, out=out[1])
+    return np.sqrt(np.maximum(out, 0.0, out=out), out=out)
 
 
 def range_jacobian(x: np.ndarray, q_s: np.ndarray) -> np.ndarray:

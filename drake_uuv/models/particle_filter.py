@@ -40,6 +40,15 @@ KF's Gaussian once a hand-over rule says the KF has converged
 (:mod:`drake_uuv.models.handover`): the KF on ``Y = ½(d1² − d2²)`` is exact in its second
 moments whatever its prior. The measurements behind this choice are in the estimator's
 page ``docs/handover.md``.
+
+Work arrays
+-----------
+A step's temporaries of a 6×N cloud are 240 kB each at N = 5000: numpy allocates each afresh
+and glibc maps (or trims and regrows) blocks that large on every allocation, so a step
+faulted its pages in again each time (about 270 page faults a step of the paper's run, a
+third of its cost). Every step takes an optional :class:`Workspace` and writes its
+temporaries there; without one it allocates them, with the same arithmetic in the same
+order, so both give the same bits.
 """
 
 from __future__ import annotations
@@ -52,6 +61,38 @@ import numpy as np
 from drake_uuv.models.measurement import batch_ranges
 
 STATE_SIZE = 6
+
+
+class Workspace:
+    """Work arrays for the steps of a cloud of ``count`` particles, reused from step to step.
+
+    ``arrays`` arrays of 6×``count``; a step uses the first four, a caller may keep the rest
+    for its own (``workspace[i]``). It serves one call at a time: each system holds its own
+    (a study builds its systems once per thread), and no step returns one of its arrays.
+    """
+
+    def __init__(self, count: int, arrays: int = 4) -> None:
+        self._arrays = list(np.empty((arrays, STATE_SIZE, count)))
+        # The views a step asks for, made once: each costs a microsecond, about 40 a step.
+        self._rows = [[a[:rows] for rows in range(STATE_SIZE + 1)] for a in self._arrays]
+
+    @property
+    def count(self) -> int:
+        return self._arrays[0].shape[1]
+
+    def __getitem__(self, index: int) -> np.ndarray:
+        return self._arrays[index]
+
+    def rows(self, index: int, rows: int) -> np.ndarray:
+        """The first ``rows`` rows of array ``index``."""
+        return self._rows[index][rows]
+
+
+def _buffer(work: Workspace | None, index: int, rows: int, count: int) -> np.ndarray:
+    """The first ``rows`` rows of work array ``index``, or a new array without a workspace."""
+    if work is None:
+        return np.empty((rows, count))
+    return work.rows(index, rows)
 
 
 @dataclass(frozen=True)
@@ -114,20 +155,58 @@ def effective_sample_size(weights: np.ndarray) -> float:
     return float(1.0 / np.dot(weights, weights))
 
 
-def particle_ranges(particles: np.ndarray, q_s: np.ndarray) -> np.ndarray:
-    """``[|q + ½ q_s|, |q − ½ q_s|]`` of every particle (columns of ``particles``; shape (2, N))."""
-    return batch_ranges(particles[:3], q_s)
+def particle_ranges(
+    particles: np.ndarray, q_s: np.ndarray, out: np.ndarray | None = None
+) -> np.ndarray:
+    """``[|q + ½ q_s|, |q − ½ q_s|]`` of every particle (columns of ``particles``; shape (2, N),
+    in ``out`` when given)."""
+    return batch_ranges(particles[:3], q_s, out)
 
 
-def weighted_moments(particles: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def weighted_moments(
+    particles: np.ndarray, weights: np.ndarray, work: Workspace | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Weighted mean and covariance ``Σ wᵢ (xᵢ − x̄)(xᵢ − x̄)ᵀ`` of the columns.
 
-    ``weights`` must be normalised (sum 1).
+    ``weights`` must be normalised (sum 1). With ``work``, its arrays 0 and 1 hold the
+    centred and the weighted columns (``particles`` must not be one of them).
     """
+    rows, count = particles.shape
     mean = particles @ weights
-    centred = particles - mean[:, None]
-    cov = (centred * weights) @ centred.T
+    centred = np.subtract(particles, mean[:, None], out=_buffer(work, 0, rows, count))
+    weighted = np.multiply(centred, weights, out=_buffer(work, 1, rows, count))
+    cov = weighted @ centred.T
     return mean, 0.5 * (cov + cov.T)
+
+
+def weigh(
+    log_weights: np.ndarray,
+    z: np.ndarray,
+    variances: np.ndarray,
+    predicted: np.ndarray,
+    work: Workspace | None = None,
+    weights: np.ndarray | None = None,
+) -> tuple[float, np.ndarray]:
+    """:func:`reweight`'s NIS and normalised posterior log weights, without the posterior's
+    moments (for a step that only carries the weights on). ``weights``:
+    ``normalised(log_weights)``, when the caller has them."""
+    z = np.asarray(z, dtype=float).reshape(-1)
+    noise = np.asarray(variances, dtype=float)
+    prior = normalised(log_weights) if weights is None else weights
+    z_hat, S = weighted_moments(predicted, prior, work)
+    S = S + (noise if noise.ndim == 2 else np.diag(noise.reshape(-1)))
+    nu = z - z_hat
+    nis = float(nu @ np.linalg.solve(S, nu))
+    rows, count = predicted.shape
+    residual = np.subtract(predicted, z[:, None], out=_buffer(work, 0, rows, count))
+    if noise.ndim == 2:  # a full covariance: −½ rᵀ R⁻¹ r through its Cholesky factor
+        whitened = np.linalg.solve(np.linalg.cholesky(noise), residual)
+        log_posterior = log_weights - 0.5 * np.einsum("ij,ij->j", whitened, whitened)
+    else:
+        squared = np.multiply(residual, residual, out=residual)
+        log_posterior = log_weights - (0.5 / noise.reshape(-1)) @ squared
+    log_posterior -= _log_sum_exp(log_posterior)
+    return nis, log_posterior
 
 
 def reweight(
@@ -136,6 +215,7 @@ def reweight(
     z: np.ndarray,
     variances: np.ndarray,
     predicted: np.ndarray,
+    work: Workspace | None = None,
 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """Bayes' rule on the particles for ``z = h(x) + v``, ``v ~ N(0, diag(variances))`` (or
     ``N(0, variances)`` when ``variances`` is a covariance matrix).
@@ -145,22 +225,35 @@ def reweight(
     the prior-weighted covariance of ``h`` plus the noise (χ² with p degrees of freedom when
     the prediction is right), and the normalised posterior log weights.
     """
-    z = np.asarray(z, dtype=float).reshape(-1)
-    noise = np.asarray(variances, dtype=float)
-    z_hat, S = weighted_moments(predicted, normalised(log_weights))
-    S = S + (noise if noise.ndim == 2 else np.diag(noise.reshape(-1)))
-    nu = z - z_hat
-    nis = float(nu @ np.linalg.solve(S, nu))
-    residual = predicted - z[:, None]
-    if noise.ndim == 2:  # a full covariance: −½ rᵀ R⁻¹ r through its Cholesky factor
-        whitened = np.linalg.solve(np.linalg.cholesky(noise), residual)
-        log_posterior = log_weights - 0.5 * np.einsum("ij,ij->j", whitened, whitened)
-    else:
-        variances = noise.reshape(-1)
-        log_posterior = log_weights - (0.5 / variances) @ (residual * residual)
-    log_posterior -= _log_sum_exp(log_posterior)
-    x, P = weighted_moments(particles, np.exp(log_posterior))
+    nis, log_posterior = weigh(log_weights, z, variances, predicted, work)
+    x, P = weighted_moments(particles, np.exp(log_posterior), work)
     return x, P, nis, log_posterior
+
+
+def range_terms(
+    particles: np.ndarray,
+    z: np.ndarray,
+    q_s: np.ndarray,
+    R: np.ndarray,
+    sonars: tuple[int, ...] | np.ndarray,
+    work: Workspace | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(z, noise, h)`` of the sonars used: their means, their noise (the variances when
+    the covariance is diagonal) and every particle's predicted ranges; :func:`weigh` of them
+    is :func:`pf_update` without the posterior's moments."""
+    rows = np.asarray(sonars, dtype=int).reshape(-1).tolist()
+    if not rows or not set(rows) <= {0, 1}:
+        raise ValueError(f"sonars: must be a non-empty subset of (0, 1), got {sonars!r}")
+    both = rows == [0, 1]
+    z = np.asarray(z, dtype=float).reshape(2)[rows]
+    R = np.asarray(R, dtype=float)
+    R = R if both else R[np.ix_(rows, rows)]
+    # Independent ranges (the sonars' own noise): the diagonal's cheaper likelihood.
+    independent = R.shape == (1, 1) or (R[0, 1] == 0.0 and R[1, 0] == 0.0)
+    noise = np.diag(R) if independent else R
+    # Work array 3: weigh uses 0 and 1, and the particles may be in 2 (a window's step).
+    predicted = particle_ranges(particles, q_s, _buffer(work, 3, 2, particles.shape[1]))
+    return z, noise, predicted if both else predicted[rows]
 
 
 def pf_update(
@@ -170,6 +263,7 @@ def pf_update(
     q_s: np.ndarray,
     R: np.ndarray,
     sonars: tuple[int, ...] | np.ndarray = (0, 1),
+    work: Workspace | None = None,
 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """The raw-range measurement update: ``(x, P, nis, log_weights)``, deterministic.
 
@@ -180,14 +274,8 @@ def pf_update(
     See :func:`reweight` for the returned values (NIS χ² with ``len(sonars)`` degrees of
     freedom when consistent).
     """
-    rows = np.asarray(sonars, dtype=int).reshape(-1)
-    if rows.size == 0 or not set(rows.tolist()) <= {0, 1}:
-        raise ValueError(f"sonars: must be a non-empty subset of (0, 1), got {sonars!r}")
-    z = np.asarray(z, dtype=float).reshape(2)[rows]
-    R = np.asarray(R, dtype=float)[np.ix_(rows, rows)]
-    # Independent ranges (the sonars' own noise): the diagonal's cheaper likelihood.
-    noise = np.diag(R) if np.count_nonzero(R - np.diag(np.diag(R))) == 0 else R
-    return reweight(particles, log_weights, z, noise, particle_ranges(particles, q_s)[rows])
+    terms = range_terms(particles, z, q_s, R, sonars, work)
+    return reweight(particles, log_weights, *terms, work)
 
 
 def systematic_resample(weights: np.ndarray, u: float) -> np.ndarray:
@@ -197,24 +285,38 @@ def systematic_resample(weights: np.ndarray, u: float) -> np.ndarray:
     per position in ``[cdf_{j−1}, cdf_j)``, i.e. ``⌈N cdf_j − u⌉ − ⌈N cdf_{j−1} − u⌉`` times.
     """
     n = weights.size
-    edges = np.ceil(np.cumsum(weights) * n - u)
+    edges = np.cumsum(weights)
+    edges *= n
+    edges -= u
+    np.ceil(edges, out=edges)
     edges[-1] = n  # rounding must not lose or add a copy
-    counts = np.diff(np.clip(edges, 0, n), prepend=0.0).astype(np.int64)
+    np.clip(edges, 0, n, out=edges)
+    counts = np.empty(n, dtype=np.int64)  # the differences of whole numbers: exact
+    counts[0] = edges[0]
+    np.subtract(edges[1:], edges[:-1], out=counts[1:], casting="unsafe")
     return np.repeat(np.arange(n), counts)
 
 
 def shrinkage_kernel(
-    particles: np.ndarray, mean: np.ndarray, cov: np.ndarray, h: float, rng: np.random.Generator
+    particles: np.ndarray,
+    mean: np.ndarray,
+    cov: np.ndarray,
+    h: float,
+    rng: np.random.Generator,
+    work: Workspace | None = None,
 ) -> np.ndarray:
     """Liu & West's move ``a xᵢ + (1 − a) x̄ + h L εᵢ``, ``a = √(1 − h²)``, ``L Lᵀ = cov``.
 
     For an equally weighted cloud with mean ``x̄`` and covariance ``cov`` the result has, in
-    expectation, the same mean and covariance (``a² cov + h² cov``). Returns a new array.
+    expectation, the same mean and covariance (``a² cov + h² cov``). Returns a new array, or
+    with ``work`` its array 2 (``particles`` may be that array: it then moves in place).
     """
+    rows, count = particles.shape
     a = math.sqrt(1.0 - h * h)
-    moved = a * particles
+    moved = np.multiply(particles, a, out=_buffer(work, 2, rows, count))
     moved += ((1.0 - a) * np.asarray(mean, dtype=float))[:, None]
-    moved += (h * _cholesky_psd(cov)) @ rng.standard_normal(particles.shape)
+    draws = rng.standard_normal(out=_buffer(work, 3, rows, count))
+    moved += np.matmul(h * _cholesky_psd(cov), draws, out=_buffer(work, 1, rows, count))
     return moved
 
 
@@ -227,21 +329,33 @@ def pf_predict(
     W: np.ndarray,
     rng: np.random.Generator,
     parameters: ParticleFilterParameters,
+    *,
+    weights: np.ndarray | None = None,
+    moments: tuple[np.ndarray, np.ndarray] | None = None,
+    work: Workspace | None = None,
+    out: np.ndarray | None = None,
+    W_factor: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Resample if degenerate, regularise, and move the particles to ``k+1``.
 
     ``log_weights`` are the normalised posterior log weights of step k (from
     :func:`pf_update`); ``a_W`` the applied world acceleration; ``W`` the target's
-    acceleration covariance. Returns the predicted particles (6×N), their log weights and
-    whether the step resampled.
+    acceleration covariance. Returns the predicted particles (6×N; in ``out`` when given),
+    their log weights and whether the step resampled. ``weights``, ``moments``: see
+    :func:`resample_regularised`; ``W_factor``: ``W``'s Cholesky factor, when the caller
+    keeps it.
     """
     n = particles.shape[1]
-    particles, log_weights, chosen = resample_regularised(particles, log_weights, rng, parameters)
+    particles, log_weights, chosen = resample_regularised(
+        particles, log_weights, rng, parameters, weights=weights, moments=moments, work=work
+    )
     # x⁺ = A x + B (a_W − ū): the known acceleration once, the target's per particle.
-    noise = np.linalg.cholesky(np.asarray(W, dtype=float)) @ rng.standard_normal((3, n))
-    moved = A @ particles
+    draws = rng.standard_normal(out=_buffer(work, 3, 3, n))
+    L = np.linalg.cholesky(np.asarray(W, dtype=float)) if W_factor is None else W_factor
+    noise = np.matmul(L, draws, out=_buffer(work, 1, 3, n))
+    moved = np.matmul(A, particles, out=np.empty((STATE_SIZE, n)) if out is None else out)
     moved += (B @ np.asarray(a_W, dtype=float).reshape(3))[:, None]
-    moved -= B @ noise
+    moved -= np.matmul(B, noise, out=_buffer(work, 0, STATE_SIZE, n))
     return moved, log_weights, chosen is not None
 
 
@@ -250,29 +364,42 @@ def resample_regularised(
     log_weights: np.ndarray,
     rng: np.random.Generator,
     parameters: ParticleFilterParameters,
+    *,
+    weights: np.ndarray | None = None,
+    moments: tuple[np.ndarray, np.ndarray] | None = None,
+    work: Workspace | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """When the effective sample size is below the threshold: systematic resampling, then the
     shrinkage kernel (equal weights after). Returns the particles, their log weights and the
     chosen ancestors' indices (None when it did not resample), so a particle's own data (its
-    path's accelerations) can follow it."""
-    weights = np.exp(log_weights)
-    n = particles.shape[1]
+    path's accelerations) can follow it.
+
+    A caller that has them passes ``weights`` (``exp(log_weights)``) and ``moments``
+    (:func:`weighted_moments` of those weights): the same numbers, not computed again.
+    """
+    if weights is None:
+        weights = np.exp(log_weights)
+    rows, n = particles.shape
     if not effective_sample_size(weights) < parameters.resample_threshold * n:
         return particles, log_weights, None
     h = parameters.bandwidth
-    if h > 0.0:
-        mean, cov = weighted_moments(particles, weights)
+    if h > 0.0 and moments is None:
+        moments = weighted_moments(particles, weights, work)
     chosen = systematic_resample(weights, float(rng.random()))
-    particles = particles[:, chosen]
+    # "clip": the indices are in range, and numpy buffers ``out`` under the default "raise".
+    particles = np.take(particles, chosen, axis=1, out=_buffer(work, 2, rows, n), mode="clip")
     log_weights = np.full(n, -math.log(n))
     if h > 0.0:
-        particles = shrinkage_kernel(particles, mean, cov, h, rng)
+        particles = shrinkage_kernel(particles, *moments, h, rng, work)
     return particles, log_weights, chosen
 
 
 def normalised(log_weights: np.ndarray) -> np.ndarray:
     """The weights of log weights, normalised to sum 1."""
-    w = np.exp(log_weights - log_weights.max())
+    top = log_weights.max()
+    if top == log_weights.min() and math.isfinite(top):  # equal (after a resampling)
+        return np.full(log_weights.size, 1.0 / log_weights.size)  # exp(0) / N, the same bits
+    w = np.exp(log_weights - top)
     return w / w.sum()
 
 

@@ -5,6 +5,7 @@ is drawn from the linear KF at the hand-over; a run is reproducible from the dia
 import math
 
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 from pydrake.common import RandomDistribution, RandomGenerator
 from pydrake.systems.analysis import Simulator
@@ -15,8 +16,10 @@ from pydrake.systems.primitives import (
     RandomSource,
     ZeroOrderHold,
 )
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from drake_uuv.estimators import RangeFilter
+from drake_uuv.estimators.particle_cloud import _on_one_blas_thread
 from drake_uuv.models.handover import Phase
 from drake_uuv.models.measurement import DROPPED, VALID
 from drake_uuv.models.particle_filter import (
@@ -181,3 +184,22 @@ def test_runs_are_reproducible_from_the_diagram_seed():
     assert_array_equal(first[:2], other[:2])
     assert not np.any(np.all(first[2:] == other[2:], axis=1))
     assert math.isfinite(float(first[-1, 0]))
+
+
+def test_the_cloud_s_steps_run_with_blas_on_one_thread_and_restore_its_count():
+    def blas_threads() -> list[int]:
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    @_on_one_blas_thread
+    def step(fail: bool) -> list[int]:
+        inside = blas_threads()
+        if fail:
+            raise RuntimeError("a step that fails")
+        return inside
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        assert step(False) == [1] * len(blas_threads())
+        assert blas_threads() and set(blas_threads()) == {2}
+        with pytest.raises(RuntimeError, match="a step that fails"):
+            step(True)
+        assert set(blas_threads()) == {2}

@@ -14,15 +14,19 @@ from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.particle_filter import (
     ParticleFilter,
     ParticleFilterParameters,
+    Workspace,
     defensive_draw,
     effective_sample_size,
     initial_particles,
+    normalised,
     particle_ranges,
     pf_predict,
     pf_update,
+    range_terms,
     reweight,
     shrinkage_kernel,
     systematic_resample,
+    weigh,
     weighted_moments,
 )
 from tests.conftest import W
@@ -171,6 +175,37 @@ def test_moments_ess_and_ranges_against_independent_formulas():
         ]
     )
     assert_allclose(particle_ranges(particles, q_s), expected, atol=1e-13)
+    out = np.empty((2, 500))
+    assert particle_ranges(particles, q_s, out) is out
+    assert_array_equal(out, particle_ranges(particles, q_s))
+
+
+@pytest.mark.parametrize("threshold", [0.0, 1.0])  # never and always resampled
+def test_steps_in_a_workspace_give_the_bits_of_fresh_arrays(threshold):
+    """The reused work arrays change where the steps write, not what they compute."""
+    count = 300
+    params = ParticleFilterParameters(count=count, resample_threshold=threshold)
+    particles = initial_particles(X0, P0, count, np.random.default_rng(4))
+    log_w = np.log(np.random.default_rng(5).uniform(0.5, 1.0, count))
+    z, q_s, R = np.array([2.9, 3.0]), np.array([-1.0, 1.0, 0.1]), np.diag([0.01, 0.02])
+
+    def steps(work):
+        x, P, nis, log_post = pf_update(particles, log_w, z, q_s, R, work=work)
+        weighed = weigh(log_w, *range_terms(particles, z, q_s, R, (1,), work), work)
+        given = weigh(
+            log_w, *range_terms(particles, z, q_s, R, (1,), work), work, normalised(log_w)
+        )
+        assert_array_equal(given[1], weighed[1])
+        assert given[0] == weighed[0]
+        moved, log_next, resampled = pf_predict(
+            particles, log_post, np.array([0.1, 0.0, 0.0]), A, B, W,
+            np.random.default_rng(6), params, work=work,
+        )  # fmt: skip
+        assert resampled is (threshold == 1.0)
+        return x, P, nis, log_post, *weighed, moved.copy(), log_next
+
+    for fresh, reused in zip(steps(None), steps(Workspace(count)), strict=True):
+        assert_array_equal(reused, fresh)
 
 
 def test_shrinkage_kernel_keeps_mean_and_covariance():
