@@ -302,13 +302,23 @@ class RelativeStateEstimator(LeafSystem):
         """``(A (x − offset) + B acceleration, A P Aᵀ + Q)``: the prediction of a relative
         estimate, in the frame the state stores (see :attr:`vehicle_motion`)."""
         motion = self.vehicle_motion
-        offset, a = motion.offset(context), motion.acceleration(context)
-        Q = self._Q
-        if self._error_model.active:
-            R_WB_nav = self._attitude_port.Eval(context).reshape(3, 3)
-            extra = self._error_model.process_noise(self._time_step, a, R_WB_nav, offset[3:])
-            Q = Q if extra is None else Q + extra
-        return predict(x - offset, P, a, self._A, self._B, Q)
+        extra = self.navigation_process_noise(context)
+        Q = self._Q if extra is None else self._Q + extra
+        return predict(
+            x - motion.offset(context), P, motion.acceleration(context), self._A, self._B, Q
+        )
+
+    def navigation_process_noise(self, context: Context) -> np.ndarray | None:
+        """What the modelled navigation errors add to the step's Q from this tick (6×6; None
+        when nothing): :meth:`~drake_uuv.estimators.error_model.ErrorModel.process_noise` at
+        this tick's commanded acceleration, navigated attitude and navigated velocity."""
+        if not self._error_model.active:
+            return None
+        motion = self.vehicle_motion
+        R_WB_nav = self._attitude_port.Eval(context).reshape(3, 3)
+        return self._error_model.process_noise(
+            self._time_step, motion.acceleration(context), R_WB_nav, motion.offset(context)[3:]
+        )
 
     def write_prediction(
         self, discrete_state: DiscreteValues, x: np.ndarray, P: np.ndarray

@@ -116,6 +116,12 @@ class ParticleCloud:
         if self._window is not None:  # each particle's target acceleration over each step
             D = self._window.schedule.window
             self._accelerations_index = host.DeclareDiscreteState(np.zeros(D * 3 * n))
+        # With modelled navigation errors, each particle's own draw of what they add over each
+        # window step (D×6×N): replayed as the window's steps are, like the accelerations.
+        self._jitter_index = None
+        if self._window is not None and host.error_model.active:
+            D = self._window.schedule.window
+            self._jitter_index = host.DeclareDiscreteState(np.zeros(D * 6 * n))
         # The steps' work arrays (0-3), the relative particles (4) and, with late ranges, the
         # particles of the window's steps (4 and 5 in turn).
         self._work = Workspace(n, arrays=5 if self._window is None else 6)
@@ -199,6 +205,29 @@ class ParticleCloud:
         value = context.get_discrete_state(self._accelerations_index).get_value()
         return value.reshape(D, 3, self._parameters.count)
 
+    def jitter(self, context: Context) -> np.ndarray | None:
+        """Each particle's draw of the navigation's process noise over each window step
+        (D×6×N; None without modelled navigation errors or late ranges)."""
+        if self._jitter_index is None:
+            return None
+        D = self._window.schedule.window
+        value = context.get_discrete_state(self._jitter_index).get_value()
+        return value.reshape(D, 6, self._parameters.count)
+
+    def _draw_jitter(
+        self, context: Context, rng: np.random.Generator, out: np.ndarray | None = None
+    ) -> np.ndarray | None:
+        """Per particle, a draw of ``N(0, Q_nav)``: what the modelled navigation errors add
+        over the step from this tick (the Gaussian filters add ``Q_nav`` to their Q). None
+        when they add nothing."""
+        Q = self._host.navigation_process_noise(context)
+        if Q is None:
+            return None
+        # Q_nav has rank 3 (an acceleration's, or the position's walk): a symmetric root.
+        values, vectors = np.linalg.eigh(Q)
+        root = vectors * np.sqrt(np.clip(values, 0.0, None))
+        return np.matmul(root, rng.standard_normal((6, self._parameters.count)), out=out)
+
     def _window_steps(self, context: Context):
         host = self._host
         samples = host.GetInputPort("range_samples").Eval(context)
@@ -217,12 +246,20 @@ class ParticleCloud:
         return moved
 
     def _step(
-        self, particles: np.ndarray, log_weights: np.ndarray, u: np.ndarray, step, out: np.ndarray
+        self,
+        particles: np.ndarray,
+        log_weights: np.ndarray,
+        u: np.ndarray,
+        step,
+        out: np.ndarray,
+        jitter: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, list[float]]:
-        """The stored-frame particles at a step's tick, reweighted by its arrived ranges at
-        their ping times along each particle's path, and moved to the next tick (in
-        ``out``)."""
+        """The stored-frame particles at a step's tick (plus their ``jitter``, the navigation's
+        process noise), reweighted by its arrived ranges at their ping times along each
+        particle's path, and moved to the next tick (in ``out``)."""
         host = self._host
+        if jitter is not None:
+            particles = particles + jitter
         t = host.time_step
         a = np.zeros(3) if host.error_model.navigated_motion else step.acceleration
         new_nis = []
@@ -254,11 +291,14 @@ class ParticleCloud:
         particles = self._stored(context)
         log_weights = self.log_weights(context)
         u = self.accelerations(context)
+        jitter = self.jitter(context)
         nis_total, first = [], None
         for i, step in enumerate(self._window_steps(context)):
+            slot = step.step - (j - D)
             particles, log_weights, new_nis = self._step(
-                particles, log_weights, u[step.step - (j - D)], step, work[4 + i % 2]
-            )
+                particles, log_weights, u[slot], step, work[4 + i % 2],
+                None if jitter is None else jitter[slot],
+            )  # fmt: skip
             nis_total += new_nis
             if first is None and j >= D:
                 first = (log_weights, step.acceleration)
@@ -295,6 +335,9 @@ class ParticleCloud:
         L = self._W_factor
         out = discrete_state.get_mutable_value(self._particles_index).reshape(STATE_SIZE, count)
         u_next = discrete_state.get_mutable_value(self._accelerations_index).reshape(D, 3, count)
+        jitter_next = None
+        if self._jitter_index is not None:
+            jitter_next = discrete_state.get_mutable_value(self._jitter_index).reshape(D, 6, count)
         if draw is not None:
             particles, log_weights = defensive_draw(
                 draw[0], draw[1], count, rng, _HANDOVER_WIDENING
@@ -302,29 +345,44 @@ class ParticleCloud:
             out[...] = particles
             for k in range(D):
                 np.matmul(L, rng.standard_normal((3, count)), out=u_next[k])
+                if jitter_next is not None:
+                    self._draw_jitter(context, rng, out=jitter_next[k])
         else:
             particles = self._stored(context)
             log_weights = self.log_weights(context)
             u = self.accelerations(context)
+            jitter = self.jitter(context)
             first = self._posterior.Eval(context)[5]
             if first is None:
                 out[...] = particles
                 u_next[:-1] = u[1:]
+                if jitter is not None:
+                    jitter_next[:-1] = jitter[1:]
             else:  # the oldest step's ranges have all arrived: the posterior weighed them
                 weighed, acceleration = first
                 particles, log_weights, chosen = resample_regularised(
                     particles, weighed, rng, self._parameters, work=work
                 )
                 u_first = u[0]
+                jitter_first = None if jitter is None else jitter[0]
                 if chosen is None:
                     u_next[:-1] = u[1:]
+                    if jitter is not None:
+                        jitter_next[:-1] = jitter[1:]
                 else:  # each particle's path follows it
                     u_first = np.take(u_first, chosen, axis=1, out=work[1][:3], mode="clip")
                     np.take(u[1:], chosen, axis=2, out=u_next[:-1], mode="clip")
+                    if jitter is not None:
+                        jitter_first = jitter[0][:, chosen]
+                        jitter_next[:-1] = jitter[1:][:, :, chosen]
+                if jitter_first is not None:
+                    particles = particles + jitter_first
                 a = np.zeros(3) if host.error_model.navigated_motion else acceleration
                 G, B = transition(host.time_step)
                 self._move(particles, u_first, G, B @ a, out)
             np.matmul(L, rng.standard_normal(out=work[3][:3]), out=u_next[-1])
+            if jitter_next is not None:
+                self._draw_jitter(context, rng, out=jitter_next[-1])
         x, P = weighted_moments(out, normalised(log_weights), work)
         host.write_prediction(discrete_state, x, P)
         discrete_state.set_value(self._log_weights_index, log_weights)
@@ -373,6 +431,9 @@ class ParticleCloud:
             self._parameters, weights=weights, moments=moments, work=work, out=out,
             W_factor=self._W_factor,
         )  # fmt: skip
+        jitter = self._draw_jitter(context, rng)
+        if jitter is not None:  # the modelled navigation errors' process noise
+            out += jitter
         if resampled or weights is None:
             weights = np.exp(log_weights)
         x, P = weighted_moments(out, weights, work)

@@ -3,6 +3,7 @@ not read the random port; the periodic update is the numpy prediction seeded by 
 is drawn from the linear KF at the hand-over; a run is reproducible from the diagram's seed."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -22,6 +23,8 @@ from drake_uuv.estimators import RangeFilter
 from drake_uuv.estimators.particle_cloud import _on_one_blas_thread
 from drake_uuv.models.handover import Phase
 from drake_uuv.models.measurement import DROPPED, VALID
+from drake_uuv.models.motion import process_noise_covariance
+from drake_uuv.models.navigation_noise import NavigationErrors, commanded_acceleration_noise
 from drake_uuv.models.particle_filter import (
     ParticleFilterParameters,
     initial_particles,
@@ -145,6 +148,33 @@ def test_navigation_particles_are_the_targets_negated_plus_the_vehicle():
     system.GetInputPort("p_WU_nav").FixValue(after, X_next[:3])
     system.GetInputPort("v_WU_nav").FixValue(after, X_next[3:])
     assert_allclose(system.cloud.particles(after), target + X_next[:, None], rtol=1e-12, atol=1e-14)
+
+
+def test_with_navigation_errors_each_particle_draws_their_process_noise():
+    """The Gaussian filters add ``Q_nav`` (the navigation's process noise at this tick) to
+    their Q: the cloud's prediction is the numpy prediction plus a draw of ``N(0, Q_nav)`` per
+    particle, from the same seeded stream after it."""
+    errors = NavigationErrors(attitude_noise=np.radians([1.0, 1.0, 3.0]))
+    config = ParticleFilter(
+        initial_estimate=X0.tolist(), initial_covariance=P0.tolist(), particle_count=COUNT,
+    )  # fmt: skip
+    system = RangeFilter(config, setting=replace(SETTING, navigation_errors=errors))
+    context = context_of(system, sonar_status=[DROPPED, DROPPED],
+                         range_samples=np.full(2 * F, np.nan))  # fmt: skip
+    particles = initial_particles(X0, P0, COUNT, np.random.default_rng(1))
+    system.set_phase(context, Phase.PARTICLE, 3)
+    system.cloud.set_particles(context, particles, uniform_log_weights())
+    rng = seed_rng()
+    moved, log_next, _ = pf_predict(particles, uniform_log_weights(), A_W, A, B, W, rng, PARAMS)
+    Q_nav = process_noise_covariance(commanded_acceleration_noise(A_W, np.radians(
+        np.diag([1.0, 1.0, 3.0])) ** 2), T)  # fmt: skip
+    values, vectors = np.linalg.eigh(Q_nav)
+    moved = moved + (vectors * np.sqrt(np.clip(values, 0.0, None))) @ rng.standard_normal(
+        (6, COUNT)
+    )
+    after = after_update(system, context)
+    assert_allclose(system.cloud.particles(after), moved, rtol=1e-12, atol=1e-14)
+    assert_array_equal(system.cloud.log_weights(after), log_next)
 
 
 def build_loop():
