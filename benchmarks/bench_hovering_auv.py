@@ -266,11 +266,11 @@ def ratio(repeats: int) -> None:
             cpu[name].append(cpu_seconds(simulation))
     paper_cpu = np.array(cpu.pop("paper"))
     print(f"{repeats} interleaved runs each, CPU seconds per 500-step run (min, median)")
-    print(f"  {'paper (kinematic)':32s} {paper_cpu.min():.3f}  {np.median(paper_cpu):.3f}")
+    print(f"  {'paper (kinematic)':44s} {paper_cpu.min():.3f}  {np.median(paper_cpu):.3f}")
     for name, seconds in cpu.items():
         seconds = np.array(seconds)
         print(
-            f"  {'hovering_auv, ' + name:32s} {seconds.min():.3f}  {np.median(seconds):.3f}  "
+            f"  {'hovering_auv, ' + name:44s} {seconds.min():.3f}  {np.median(seconds):.3f}  "
             f"ratio {np.median(seconds / paper_cpu):.2f} (target ≤ 5)"
         )
     reference = ClosedLoopSimulation(

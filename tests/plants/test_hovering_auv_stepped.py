@@ -87,8 +87,8 @@ def test_the_fixed_step_is_third_order_and_within_30_micrometres_of_rk5() -> Non
     # Kutta's RK3 at one step per controller period against Drake's RK5 at accuracy 1e-11,
     # the same controller: the global error of a third-order step falls as h³, 8-fold from
     # 50 Hz to 100 Hz. At the default 50 Hz, 2.2e-5 m over these 6 s (a saturating burst
-    # included); the 500-step hovering_auv run stays within 5e-5 m
-    # (benchmarks/bench_hovering_auv.py --closed-loop).
+    # included); the 500-step hovering_auv run, 3e-5 m at seed 0
+    # (benchmarks/bench_hovering_auv.py --ratio).
     errors = []
     for rate in (50.0, 100.0):
         fixed = HoveringAuv(controller_rate=rate)
