@@ -2,6 +2,7 @@
 driven alone by a fixed outer-command pattern.
 
     python benchmarks/bench_hovering_auv.py --ratio [--repeats 5]
+    python benchmarks/bench_hovering_auv.py --errors 10
     python benchmarks/bench_hovering_auv.py --closed-loop [--steps 500] [--set FIELD=VALUE ...]
     python benchmarks/bench_hovering_auv.py [--steps 500] [--max-angular-rate 0.5]
         [--acceleration 0.15] [--speed 0.4] [--accuracy 1e-6] [--attitude-reference step]
@@ -14,8 +15,13 @@ alternately ``--repeats`` times at the scenario's seed: CPU seconds per run (min
 CPU time is less inflated than wall time on a busy machine) and the median of the pairwise
 ratios (target: at most 5). It does so for each integrator of the vehicle
 (``plant.integrator``: the default fixed step ``runge_kutta3`` and the error-controlled
-``runge_kutta5``), and prints the default's error: the largest distance over the run between
-its vehicle positions and those of ``runge_kutta5`` at accuracy 1e-8.
+``runge_kutta5``) and for the same loop on the kinematic plant (``plant=KinematicUuv``: the
+difference is the vehicle's cost), then prints ``--errors 1``.
+
+``--errors N`` runs seeds 0 … N−1 of ``hovering_auv`` with each integrator against
+``runge_kutta5`` at accuracy 1e-8 and prints, per seed and at most over the seeds, the
+largest distance between the vehicle positions, the change of the position RMSE and the
+largest relative change of any metric.
 
 ``--closed-loop`` times one run of the paper scenario with ``plant=!HoveringAuv`` (and any
 ``--set`` overrides), the whole diagram with sonar, filter and both controllers, built once
@@ -248,21 +254,23 @@ def cpu_seconds(simulation: ClosedLoopSimulation) -> float:
 
 
 def ratio(repeats: int) -> None:
-    """Prints the hovering_auv run's cost over the paper's, per integrator, and the default
-    integrator's largest position difference from RK5 at accuracy 1e-8 (see the notes)."""
+    """Prints the hovering_auv run's cost over the paper's, per integrator and for the same loop
+    on the kinematic plant, and the default integrator's largest position difference from RK5
+    at accuracy 1e-8 (see the notes)."""
     paper = ClosedLoopSimulation(load_scenario("paper"))
-    vehicles = {
+    variants = {
         name: ClosedLoopSimulation(load_scenario("hovering_auv", overrides))
         for name, overrides in (
-            ("runge_kutta3 (default)", []),
-            ("runge_kutta5, accuracy 1e-6", ["plant.integrator=runge_kutta5"]),
+            ("hovering_auv, runge_kutta3 (default)", []),
+            ("hovering_auv, runge_kutta5, accuracy 1e-6", ["plant.integrator=runge_kutta5"]),
+            ("hovering_auv's loop on KinematicUuv", ["plant=KinematicUuv"]),
         )
     }
-    for simulation in (paper, *vehicles.values()):
+    for simulation in (paper, *variants.values()):
         simulation.run()  # warm-up: first-call costs out of the figures
-    cpu = {name: [] for name in ("paper", *vehicles)}
+    cpu = {name: [] for name in ("paper", *variants)}
     for _ in range(repeats):
-        for name, simulation in (("paper", paper), *vehicles.items()):
+        for name, simulation in (("paper", paper), *variants.items()):
             cpu[name].append(cpu_seconds(simulation))
     paper_cpu = np.array(cpu.pop("paper"))
     print(f"{repeats} interleaved runs each, CPU seconds per 500-step run (min, median)")
@@ -270,21 +278,50 @@ def ratio(repeats: int) -> None:
     for name, seconds in cpu.items():
         seconds = np.array(seconds)
         print(
-            f"  {'hovering_auv, ' + name:44s} {seconds.min():.3f}  {np.median(seconds):.3f}  "
+            f"  {name:44s} {seconds.min():.3f}  {np.median(seconds):.3f}  "
             f"ratio {np.median(seconds / paper_cpu):.2f} (target ≤ 5)"
         )
-    reference = ClosedLoopSimulation(
-        load_scenario(
-            "hovering_auv", ["plant.integrator=runge_kutta5", "plant.integrator_accuracy=1e-8"]
+    errors(range(1))
+
+
+def errors(seeds: range) -> None:
+    """Prints, per seed of the hovering_auv run, how far the default fixed step and RK5 at the
+    default accuracy 1e-6 are from RK5 at 1e-8: the largest distance between the vehicle
+    positions, the change of the position RMSE and the largest relative change of a metric."""
+    simulations = {
+        name: ClosedLoopSimulation(load_scenario("hovering_auv", overrides))
+        for name, overrides in (
+            ("runge_kutta3", []),
+            ("runge_kutta5 at 1e-6", ["plant.integrator=runge_kutta5"]),
+            ("reference", ["plant.integrator=runge_kutta5", "plant.integrator_accuracy=1e-8"]),
         )
-    ).run()
-    default = vehicles["runge_kutta3 (default)"].run()
-    error = np.linalg.norm(default.log["p_WU"] - reference.log["p_WU"], axis=1).max()
-    print(
-        f"  runge_kutta3 against runge_kutta5 at 1e-8, seed {default.scenario.random_seed}: "
-        f"largest position difference {error:.2e} m; position RMSE "
-        f"{default.metrics['position_rmse']:.6f} against {reference.metrics['position_rmse']:.6f} m"
-    )
+    }
+    reference = simulations.pop("reference")
+    worst = {name: np.zeros(3) for name in simulations}
+    print("against runge_kutta5 at 1e-8: largest |Δp_WU| [m], Δ position_rmse [m], worst metric")
+    for seed in seeds:
+        truth = reference.run(seed=seed)
+        for name, simulation in simulations.items():
+            result = simulation.run(seed=seed)
+            distance = np.linalg.norm(result.log["p_WU"] - truth.log["p_WU"], axis=1).max()
+            relative = {
+                key: abs(result.metrics[key] - value) / abs(value)
+                for key, value in truth.metrics.items()
+                if key != "wall_time_s" and isinstance(value, float) and value != 0.0
+            }
+            metric = max(relative, key=relative.get)
+            rmse = result.metrics["position_rmse"] - truth.metrics["position_rmse"]
+            figures = np.array([distance, abs(rmse), relative[metric]])
+            worst[name] = np.maximum(worst[name], figures)
+            print(
+                f"  seed {seed} {name:22s} {distance:.2e}  {rmse:+.2e}  "
+                f"{metric} {relative[metric]:.1e} relative"
+            )
+    for name, (distance, rmse, metric) in worst.items():
+        print(
+            f"  {name:30s} at most {distance:.2e} m, position RMSE {rmse:.1e} m, "
+            f"a metric {metric:.1e} of its value (seeds {seeds.start}-{seeds.stop - 1})"
+        )
 
 
 def main() -> None:
@@ -307,6 +344,9 @@ def main() -> None:
     )
     parser.add_argument("--repeats", type=int, default=5, help="interleaved runs for --ratio")
     parser.add_argument(
+        "--errors", type=int, default=None, metavar="SEEDS", help="integrator errors, seeds 0.."
+    )
+    parser.add_argument(
         "--set",
         dest="overrides",
         action="append",
@@ -317,6 +357,9 @@ def main() -> None:
     args = parser.parse_args()
     if args.ratio:
         ratio(args.repeats)
+        return
+    if args.errors is not None:
+        errors(range(args.errors))
         return
     if args.closed_loop:
         closed_loop(args.steps, args.overrides)

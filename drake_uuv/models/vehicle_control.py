@@ -81,17 +81,8 @@ def times(A: Rows, B: Rows) -> Rows:
 
 
 def times_transpose(A: Rows, B: Rows) -> Rows:
-    """``A Bᵀ`` for 3×3 rows."""
-    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = A
-    (b00, b01, b02), (b10, b11, b12), (b20, b21, b22) = B
-    return [
-        [a00 * b00 + a01 * b01 + a02 * b02, a00 * b10 + a01 * b11 + a02 * b12,
-         a00 * b20 + a01 * b21 + a02 * b22],
-        [a10 * b00 + a11 * b01 + a12 * b02, a10 * b10 + a11 * b11 + a12 * b12,
-         a10 * b20 + a11 * b21 + a12 * b22],
-        [a20 * b00 + a21 * b01 + a22 * b02, a20 * b10 + a21 * b11 + a22 * b12,
-         a20 * b20 + a21 * b21 + a22 * b22],
-    ]  # fmt: skip
+    """``A Bᵀ`` for 3×3 rows (the same products, summed in the same order, as ``times``)."""
+    return times(A, list(zip(*B, strict=True)))
 
 
 def _apply(R: Rows, v: list[float]) -> list[float]:
