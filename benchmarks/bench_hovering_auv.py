@@ -1,29 +1,46 @@
-"""Wall time and tracking of the hovering UUV plant driven by a fixed outer-command pattern.
+"""Cost and tracking of the hovering UUV plant: in the closed loop against the paper's run, and
+driven alone by a fixed outer-command pattern.
 
+    python benchmarks/bench_hovering_auv.py --ratio [--repeats 5]
+    python benchmarks/bench_hovering_auv.py --errors 10
+    python benchmarks/bench_hovering_auv.py --closed-loop [--steps 500] [--set FIELD=VALUE ...]
     python benchmarks/bench_hovering_auv.py [--steps 500] [--max-angular-rate 0.5]
         [--acceleration 0.15] [--speed 0.4] [--accuracy 1e-6] [--attitude-reference step]
         [--figures DIR] [--sweep] [--limits]
-    python benchmarks/bench_hovering_auv.py --closed-loop [--steps 500] [--set FIELD=VALUE ...]
 
-The outer commands at period t = 0.5 s are the paper's Algorithm 2 attitude plan (the
-project's ``TrajectoryAttitudeGenerator``, optionally rate-limited) and a bounded world acceleration
-``a_W(τ) = a [cos(ωτ), cos(4ωτ/3), ½ cos(2ωτ)]``, ``ω = a/v``, sent as ``u1_B = R_WBᵀ a_W``;
-its velocity has amplitudes ``[v, ¾v, ¼v]``, so ``v`` keeps the speed under the vehicle's
-drag-limited 0.76 m/s while ``a`` sets the acceleration.
+``--ratio`` prints the cost of the flyable hovering-UUV run (``ClosedLoopSimulation`` of the
+``hovering_auv`` scenario, what ``drake-uuv run --scenario hovering_auv`` simulates) over the
+paper's run on its kinematic plant (the ``paper`` scenario), both built once and run
+alternately ``--repeats`` times at the scenario's seed: CPU seconds per run (min and median;
+CPU time is less inflated than wall time on a busy machine) and the median of the pairwise
+ratios (target: at most 5). It does so for each integrator of the vehicle
+(``plant.integrator``: the default fixed step ``runge_kutta3`` and the error-controlled
+``runge_kutta5``) and for the same loop on the kinematic plant (``plant=KinematicUuv``: the
+difference is the vehicle's cost), then prints ``--errors 1``.
 
-Prints the wall and CPU time of the simulation alone (target: under ~10 s for 500 steps, so
-that a full closed loop stays under 20 s; CPU time is less inflated by a busy machine) and
-what the figures need: the attitude error at each outer tick against the target
-``R(k+1) = Exp(u2 t) R(k)`` (mean, peak), the fraction of fast ticks at which the
-allocation had to scale the wrench down, and the peak achieved angular rate, angular
-acceleration, acceleration and speed. ``--sweep`` runs a grid of rate limits and
-accelerations instead; ``--limits`` prints the worst-direction limits derived from the
-thrust limits and inertia (``drake_uuv/models/vehicle_limits.py``) and what the vehicle
-reaches when asked for more; ``--figures`` writes the attitude-tracking and thrust figures.
+``--errors N`` runs seeds 0 … N−1 of ``hovering_auv`` with each integrator against
+``runge_kutta5`` at accuracy 1e-8 and prints, per seed and at most over the seeds, the
+largest distance between the vehicle positions, the change of the position RMSE and the
+largest relative change of any metric.
 
-``--closed-loop`` times ``drake-uuv``'s own ``ClosedLoopSimulation`` instead: the paper
-scenario with ``plant=!HoveringAuv`` (and any ``--set`` overrides), the whole diagram with
-sonar, filter and both controllers, built once and run once (target: 500 steps under 20 s).
+``--closed-loop`` times one run of the paper scenario with ``plant=!HoveringAuv`` (and any
+``--set`` overrides), the whole diagram with sonar, filter and both controllers, built once
+and run once, and prints the run's vehicle metrics.
+
+Without either, the plant alone, on the continuous vehicle (``integrator: runge_kutta5``:
+the figures read it between outer ticks). The outer commands at period t = 0.5 s are the
+paper's Algorithm 2 attitude plan (the project's ``TrajectoryAttitudeGenerator``, optionally
+rate-limited) and a bounded world acceleration ``a_W(τ) = a [cos(ωτ), cos(4ωτ/3), ½
+cos(2ωτ)]``, ``ω = a/v``, sent as ``u1_B = R_WBᵀ a_W``; its velocity has amplitudes ``[v,
+¾v, ¼v]``, so ``v`` keeps the speed under the vehicle's drag-limited 0.76 m/s while ``a``
+sets the acceleration. Prints the wall and CPU time of the simulation alone and what the
+figures need: the attitude error at each outer tick against the target ``R(k+1) = Exp(u2 t)
+R(k)`` (mean, peak), the fraction of fast ticks at which the allocation had to scale the
+wrench down, and the peak achieved angular rate, angular acceleration, acceleration and
+speed. ``--sweep`` runs a grid of rate limits and accelerations instead; ``--limits`` prints
+the worst-direction limits derived from the thrust limits and inertia
+(``drake_uuv/models/vehicle_limits.py``) and what the vehicle reaches when asked for more;
+``--figures`` writes the attitude-tracking and thrust figures.
 """
 
 import argparse
@@ -36,6 +53,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, VectorLogSink
 
+from drake_uuv import ClosedLoopSimulation
 from drake_uuv.analysis.figures import save_figure
 from drake_uuv.analysis.vehicle_figures import (
     attitude_errors,
@@ -45,7 +63,7 @@ from drake_uuv.analysis.vehicle_figures import (
 from drake_uuv.attitude import TrajectoryAttitudeGenerator, attitude_setting
 from drake_uuv.models.vehicle_limits import vehicle_limits
 from drake_uuv.plants import PlantSetting
-from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
+from drake_uuv.plants.hovering_auv import HoveringAuvPlant
 from drake_uuv.scenario import TrajectoryAttitude, load_scenario
 from drake_uuv.scenario.plants import HoveringAuv
 
@@ -91,7 +109,7 @@ def build(
     builder.Connect(plant.GetOutputPort("R_WB"), accel.GetInputPort("R_WB"))
     builder.Connect(attitude.GetOutputPort("u2_W"), plant.GetInputPort("u2_W"))
     builder.Connect(accel.GetOutputPort("u1_B"), plant.GetInputPort("u1_B"))
-    h = plant.controller.period
+    h = plant.period
     outer = {
         name: LogVectorOutput(plant.GetOutputPort(name), builder, OUTER_PERIOD)
         for name in ("R_WB", "R_WB_command", "w_WB", "w_WB_command")
@@ -115,7 +133,7 @@ def run(
     start = time.perf_counter()
     diagram, plant, outer, fast = build(config, max_angular_rate, acceleration, speed)
     simulator = Simulator(diagram)
-    configure_simulator(simulator, config, OUTER_PERIOD)
+    plant.configure_simulator(simulator)
     simulator.Initialize()
     built, cpu = time.perf_counter(), time.process_time()
     simulator.AdvanceTo(steps * OUTER_PERIOD)
@@ -129,7 +147,7 @@ def run(
     # commanded at step k − 1, so row-by-row differences are the tracking error at each tick.
     errors = attitude_errors(log)[1:]
     scale = fast_log["allocation_scale"]
-    h = plant.controller.period
+    h = plant.period
     w = fast_log["w_WB"]
     v = fast_log["v_WU"]
     integrator = simulator.get_integrator()
@@ -179,11 +197,11 @@ def check_limits(config: HoveringAuv) -> None:
         for name, value in (("u1_B", u1), ("u2_W", u2)):
             source = builder.AddSystem(ConstantVectorSource(value))
             builder.Connect(source.get_output_port(), plant.GetInputPort(name))
-        h = plant.controller.period
+        h = plant.period
         w_log = LogVectorOutput(plant.GetOutputPort("w_WB"), builder, h)
         v_log = LogVectorOutput(plant.GetOutputPort("v_WU"), builder, h)
         simulator = Simulator(builder.Build())
-        configure_simulator(simulator, config, OUTER_PERIOD)
+        plant.configure_simulator(simulator)
         simulator.AdvanceTo(seconds)
         w = np.linalg.norm(w_log.FindLog(simulator.get_context()).data().T, axis=1)
         v = v_log.FindLog(simulator.get_context()).data().T
@@ -205,8 +223,6 @@ def check_limits(config: HoveringAuv) -> None:
 def closed_loop(steps: int, overrides: list[str]) -> None:
     """Prints the build, wall and CPU time of one closed-loop run of the paper scenario on the
     vehicle (``ClosedLoopSimulation``), with the run's vehicle metrics."""
-    from drake_uuv import ClosedLoopSimulation, load_scenario
-
     scenario = load_scenario("paper", ["plant=!HoveringAuv", f"steps={steps}", *overrides])
     start = time.perf_counter()
     simulation = ClosedLoopSimulation(scenario)
@@ -230,6 +246,84 @@ def closed_loop(steps: int, overrides: list[str]) -> None:
         print(f"  {name:36s} {metrics[name]:.4g}")
 
 
+def cpu_seconds(simulation: ClosedLoopSimulation) -> float:
+    """The CPU time of one run of ``simulation`` at its scenario's seed."""
+    start = time.process_time()
+    simulation.run()
+    return time.process_time() - start
+
+
+def ratio(repeats: int) -> None:
+    """Prints the hovering_auv run's cost over the paper's, per integrator and for the same loop
+    on the kinematic plant, and the default integrator's largest position difference from RK5
+    at accuracy 1e-8 (see the notes)."""
+    paper = ClosedLoopSimulation(load_scenario("paper"))
+    variants = {
+        name: ClosedLoopSimulation(load_scenario("hovering_auv", overrides))
+        for name, overrides in (
+            ("hovering_auv, runge_kutta3 (default)", []),
+            ("hovering_auv, runge_kutta5, accuracy 1e-6", ["plant.integrator=runge_kutta5"]),
+            ("hovering_auv's loop on KinematicUuv", ["plant=KinematicUuv"]),
+        )
+    }
+    for simulation in (paper, *variants.values()):
+        simulation.run()  # warm-up: first-call costs out of the figures
+    cpu = {name: [] for name in ("paper", *variants)}
+    for _ in range(repeats):
+        for name, simulation in (("paper", paper), *variants.items()):
+            cpu[name].append(cpu_seconds(simulation))
+    paper_cpu = np.array(cpu.pop("paper"))
+    print(f"{repeats} interleaved runs each, CPU seconds per 500-step run (min, median)")
+    print(f"  {'paper (kinematic)':44s} {paper_cpu.min():.3f}  {np.median(paper_cpu):.3f}")
+    for name, seconds in cpu.items():
+        seconds = np.array(seconds)
+        print(
+            f"  {name:44s} {seconds.min():.3f}  {np.median(seconds):.3f}  "
+            f"ratio {np.median(seconds / paper_cpu):.2f} (target ≤ 5)"
+        )
+    errors(range(1))
+
+
+def errors(seeds: range) -> None:
+    """Prints, per seed of the hovering_auv run, how far the default fixed step and RK5 at the
+    default accuracy 1e-6 are from RK5 at 1e-8: the largest distance between the vehicle
+    positions, the change of the position RMSE and the largest relative change of a metric."""
+    simulations = {
+        name: ClosedLoopSimulation(load_scenario("hovering_auv", overrides))
+        for name, overrides in (
+            ("runge_kutta3", []),
+            ("runge_kutta5 at 1e-6", ["plant.integrator=runge_kutta5"]),
+            ("reference", ["plant.integrator=runge_kutta5", "plant.integrator_accuracy=1e-8"]),
+        )
+    }
+    reference = simulations.pop("reference")
+    worst = {name: np.zeros(3) for name in simulations}
+    print("against runge_kutta5 at 1e-8: largest |Δp_WU| [m], Δ position_rmse [m], worst metric")
+    for seed in seeds:
+        truth = reference.run(seed=seed)
+        for name, simulation in simulations.items():
+            result = simulation.run(seed=seed)
+            distance = np.linalg.norm(result.log["p_WU"] - truth.log["p_WU"], axis=1).max()
+            relative = {
+                key: abs(result.metrics[key] - value) / abs(value)
+                for key, value in truth.metrics.items()
+                if key != "wall_time_s" and isinstance(value, float) and value != 0.0
+            }
+            metric = max(relative, key=relative.get)
+            rmse = result.metrics["position_rmse"] - truth.metrics["position_rmse"]
+            figures = np.array([distance, abs(rmse), relative[metric]])
+            worst[name] = np.maximum(worst[name], figures)
+            print(
+                f"  seed {seed} {name:22s} {distance:.2e}  {rmse:+.2e}  "
+                f"{metric} {relative[metric]:.1e} relative"
+            )
+    for name, (distance, rmse, metric) in worst.items():
+        print(
+            f"  {name:30s} at most {distance:.2e} m, position RMSE {rmse:.1e} m, "
+            f"a metric {metric:.1e} of its value (seeds {seeds.start}-{seeds.stop - 1})"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=500)
@@ -246,6 +340,13 @@ def main() -> None:
         "--closed-loop", action="store_true", help="time drake-uuv's closed loop on the vehicle"
     )
     parser.add_argument(
+        "--ratio", action="store_true", help="hovering_auv run over the paper run, per integrator"
+    )
+    parser.add_argument("--repeats", type=int, default=5, help="interleaved runs for --ratio")
+    parser.add_argument(
+        "--errors", type=int, default=None, metavar="SEEDS", help="integrator errors, seeds 0.."
+    )
+    parser.add_argument(
         "--set",
         dest="overrides",
         action="append",
@@ -254,10 +355,17 @@ def main() -> None:
         help="scenario override for --closed-loop (repeatable)",
     )
     args = parser.parse_args()
+    if args.ratio:
+        ratio(args.repeats)
+        return
+    if args.errors is not None:
+        errors(range(args.errors))
+        return
     if args.closed_loop:
         closed_loop(args.steps, args.overrides)
         return
-    config = HoveringAuv()
+    # The figures read the motion between outer ticks: the continuous vehicle.
+    config = HoveringAuv(integrator="runge_kutta5")
     if args.accuracy is not None:
         config.integrator_accuracy = args.accuracy
     if args.rate is not None:

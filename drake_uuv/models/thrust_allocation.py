@@ -27,6 +27,8 @@ symmetric thruster layouts.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = ["ThrustAllocator", "allocation_matrix", "weighted_pseudo_inverse"]
@@ -88,9 +90,11 @@ class ThrustAllocator:
             raise ValueError(f"max_thrust: must be > 0, got {max_thrust!r}")
         self.max_thrust = float(max_thrust)
         self.A_pinv = weighted_pseudo_inverse(self.A, np.ones(n) if weights is None else weights)
-        # Columns split once: force part and moment part of the pseudo-inverse.
-        self._pinv_force = np.ascontiguousarray(self.A_pinv[:, :3])
-        self._pinv_moment = np.ascontiguousarray(self.A_pinv[:, 3:])
+        # Rows split once, as Python floats: force part and moment part of the pseudo-inverse
+        # (allocate runs at every controller tick, on 3-vectors, where numpy's per-call
+        # overhead costs more than the arithmetic).
+        self._force_rows = self.A_pinv[:, :3].tolist()
+        self._moment_rows = self.A_pinv[:, 3:].tolist()
 
     @property
     def num_thrusters(self) -> int:
@@ -117,23 +121,31 @@ class ThrustAllocator:
         Returns ``(f, force_scale, moment_scale)``; both scales are 1 when the wrench is
         feasible, and then ``A f = wrench`` exactly.
         """
+        thrust, force_scale, moment_scale = self.allocate_floats(np.asarray(wrench).tolist())
+        return np.array(thrust), force_scale, moment_scale
+
+    def allocate_floats(self, wrench: list[float]) -> tuple[list[float], float, float]:
+        """:meth:`allocate` on a list of 6 Python floats, returning the thrusts as a list."""
         f_max = self.max_thrust
-        f_moment = self._pinv_moment @ wrench[3:]
-        peak = float(abs(f_moment).max())
+        fx, fy, fz, mx, my, mz = wrench
+        f_moment = [a * mx + b * my + c * mz for a, b, c in self._moment_rows]
+        peak = max(map(abs, f_moment))
         moment_scale = 1.0
         if peak > f_max:
             moment_scale = f_max / peak
-            f_moment *= moment_scale
-        f_force = self._pinv_force @ wrench[:3]
-        total = f_moment + f_force
-        if float(abs(total).max()) <= f_max:
+            f_moment = [moment_scale * f for f in f_moment]
+        f_force = [a * fx + b * fy + c * fz for a, b, c in self._force_rows]
+        total = [m + f for m, f in zip(f_moment, f_force, strict=True)]
+        if max(map(abs, total)) <= f_max:
             return total, 1.0, moment_scale
         # Largest s with |f_moment + s f_force| ≤ f_max for every thruster (|f_moment| ≤ f_max).
-        with np.errstate(divide="ignore", invalid="ignore"):
-            limits = np.where(
-                f_force > 0.0,
-                (f_max - f_moment) / f_force,
-                np.where(f_force < 0.0, (-f_max - f_moment) / f_force, np.inf),
-            )
-        force_scale = float(min(1.0, max(0.0, np.min(limits))))
-        return f_moment + force_scale * f_force, force_scale, moment_scale
+        limit = min(
+            (f_max - m) / f if f > 0.0 else (-f_max - m) / f if f < 0.0 else math.inf
+            for m, f in zip(f_moment, f_force, strict=True)
+        )
+        force_scale = min(1.0, max(0.0, limit))
+        return (
+            [m + force_scale * f for m, f in zip(f_moment, f_force, strict=True)],
+            force_scale,
+            moment_scale,
+        )

@@ -4,6 +4,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorC
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from drake_uuv.plants.base import PlantSetting
+from drake_uuv.plants.hovering_auv_stepped import SteppedHoveringAuv
 from drake_uuv.plants.low_level_controller import LowLevelController
 from drake_uuv.plants.marine_vehicle import MarineVehicle
 from drake_uuv.primitives.signal import Signal
@@ -13,21 +14,35 @@ __all__ = ["HoveringAuvPlant", "configure_simulator"]
 
 
 def configure_simulator(simulator: Simulator, config: HoveringAuv, outer_period: float) -> None:
-    """Sets the integrator of a simulator whose diagram holds this vehicle (outer period t).
+    """Sets the integrator of a simulator whose diagram holds the continuous vehicle
+    (``MarineVehicle``, outer period t), by ``config.integrator``.
 
-    Drake's RK5 (Dormand–Prince 5(4)) with error control at ``config.integrator_accuracy``,
-    steps of at most one controller period, and that period as the first step. The vehicle
-    is the only continuous state and it is not stiff (see ``MarineVehicle``), and its thrust
-    is constant within a controller period, so the fifth-order step over a whole period
-    meets the accuracy almost always: one step (7 derivative evaluations) per period, with
-    error control shortening steps only in violent transients. Against Drake's
-    MultibodyPlant model of the same vehicle it stays within 2e-7 m over 10 s of a
-    thrust history that turns and moves the vehicle (``tests/plants/test_marine_vehicle.py``,
-    tolerance 1e-6 m). Error-controlled RK3 needs an accuracy of about 1e-6 for the same
-    agreement and then takes 12 evaluations per period: 500 outer steps would cost about
-    10 s of CPU instead of about 6 s (``benchmarks/bench_hovering_auv.py``).
+    ``"runge_kutta5"``: Drake's RK5 (Dormand–Prince 5(4)) with error control at
+    ``config.integrator_accuracy``, steps of at most one controller period, and that period
+    as the first step. The vehicle is the only continuous state and it is not stiff (see
+    ``MarineVehicle``), and its thrust is constant within a controller period, so the
+    fifth-order step over a whole period meets the accuracy almost always: one step (7
+    derivative evaluations) per period, with error control shortening steps only in violent
+    transients. Against Drake's MultibodyPlant model of the same vehicle it stays within
+    2e-7 m over 10 s of a thrust history that turns and moves the vehicle
+    (``tests/plants/test_marine_vehicle.py``, tolerance 1e-6 m).
+
+    ``"runge_kutta3"``: Drake's RK3 (Kutta's third order) without error control, one step
+    per controller period: what ``SteppedHoveringAuv`` computes inside the plant, which is
+    how ``HoveringAuvPlant`` runs it (three derivative evaluations per period, and no Drake
+    event per period). Over a 500-step ``hovering_auv`` run its position stays within
+    3e-5 m of RK5 at 1e-8 (seed 0, ``benchmarks/bench_hovering_auv.py --ratio``; 1.5e-4 m at
+    most over seeds 0–9).
     """
     period = config.controller_period(outer_period)
+    if config.integrator == "runge_kutta3":
+        ApplySimulatorConfig(
+            SimulatorConfig(
+                integration_scheme="runge_kutta3", max_step_size=period, use_error_control=False
+            ),
+            simulator,
+        )
+        return
     ApplySimulatorConfig(
         SimulatorConfig(
             integration_scheme="runge_kutta5",
@@ -41,14 +56,22 @@ def configure_simulator(simulator: Simulator, config: HoveringAuv, outer_period:
 
 
 class HoveringAuvPlant(Diagram):
-    """``MarineVehicle`` driven by ``LowLevelController``: fills the diagram's plant slot.
+    """The hovering UUV and its low-level controller: fills the diagram's plant slot.
 
     The outer loop commands, at period t, a body acceleration ``u1_B`` and a world angular
     velocity ``u2_W`` exactly as for the paper's kinematic plant; the low-level controller
     latches them at each outer tick and makes the vehicle follow ``v_WU(kt) + R(kt) u1 (τ −
     kt)`` and ``Exp(u2 (τ − kt)) R(kt)`` with its thrusters (see ``LowLevelController``).
-    Systems inside: ``vehicle`` and ``low_level_controller``; each controller input is wired
-    to the vehicle output of the same name.
+
+    Systems inside, by ``config.integrator``:
+
+    - ``"runge_kutta3"`` (the default): ``stepped_vehicle``, a ``SteppedHoveringAuv``, which
+      runs the controller's ticks and one fixed RK3 step of the vehicle per tick at each
+      outer tick; its outputs change at outer ticks only.
+    - ``"runge_kutta5"``: ``vehicle`` (``MarineVehicle``, continuous) and
+      ``low_level_controller`` (``LowLevelController``, discrete at the controller's
+      period), each controller input wired to the vehicle output of the same name;
+      integrated by Drake's error-controlled RK5, so the outputs are the motion at any time.
 
     .. pydrake_system::
 
@@ -82,11 +105,10 @@ class HoveringAuvPlant(Diagram):
     - ``saturation_ticks`` (4): fast ticks so far, and those with the force, the moment, or
       either scaled down by saturation.
 
-    ``config`` (:class:`~drake_uuv.scenario.HoveringAuv`) is the vehicle, its thrusters and
-    its controller; the ``setting`` gives the outer period and the initial state (at rest in
-    rotation). Simulate with :func:`configure_simulator` (in the closed loop, the simulation
-    calls this plant's :meth:`configure_simulator`). :data:`extra_signals` are logged with
-    the closed loop's signals.
+    ``config`` (:class:`~drake_uuv.scenario.HoveringAuv`) is the vehicle, its thrusters, its
+    controller and its integrator; the ``setting`` gives the outer period and the initial
+    state (at rest in rotation). Simulate with :meth:`configure_simulator` (the closed loop's
+    simulation calls it). :data:`extra_signals` are logged with the closed loop's signals.
     """
 
     #: The outputs beyond the plant contract that a run logs (once per outer step).
@@ -102,8 +124,39 @@ class HoveringAuvPlant(Diagram):
     def __init__(self, config: HoveringAuv, *, setting: PlantSetting) -> None:
         super().__init__()
         config.validate("config")
-        R0 = setting.initial_R_WB
         builder = DiagramBuilder()
+        if config.integrator == "runge_kutta3":
+            stepped = builder.AddNamedSystem(
+                "stepped_vehicle", SteppedHoveringAuv(config, setting=setting)
+            )
+            inputs = outputs = stepped
+            self._vehicle = self._controller = None
+            self._period = stepped.period
+        else:
+            outputs, inputs = self._add_continuous(builder, config, setting)
+            self._period = self._controller.period
+        for name in ("u1_B", "u2_W"):
+            builder.ExportInput(inputs.GetInputPort(name), name)
+        for name in ("p_WU", "v_WU", "R_WB", "w_WB", "nu_B", "thrust"):
+            builder.ExportOutput(outputs.GetOutputPort(name), name)
+        for name in (
+            "thrust_command",
+            "R_WB_command",
+            "w_WB_command",
+            "v_WU_command",
+            "wrench_command",
+            "allocation_scale",
+            "saturation_ticks",
+        ):
+            builder.ExportOutput(inputs.GetOutputPort(name), name)
+        builder.BuildInto(self)
+        self._config, self._time_step = config, setting.time_step
+
+    def _add_continuous(
+        self, builder: DiagramBuilder, config: HoveringAuv, setting: PlantSetting
+    ) -> tuple[MarineVehicle, LowLevelController]:
+        """Adds and wires ``vehicle`` and ``low_level_controller`` (``runge_kutta5``)."""
+        R0 = setting.initial_R_WB
         vehicle = builder.AddNamedSystem(
             "vehicle",
             MarineVehicle(
@@ -120,32 +173,26 @@ class HoveringAuvPlant(Diagram):
         builder.Connect(controller.GetOutputPort("thrust_command"), vehicle.get_input_port())
         for name in ("R_WB", "nu_B"):
             builder.Connect(vehicle.GetOutputPort(name), controller.GetInputPort(name))
-        for name in ("u1_B", "u2_W"):
-            builder.ExportInput(controller.GetInputPort(name), name)
-        for name in ("p_WU", "v_WU", "R_WB", "w_WB", "nu_B", "thrust"):
-            builder.ExportOutput(vehicle.GetOutputPort(name), name)
-        for name in (
-            "thrust_command",
-            "R_WB_command",
-            "w_WB_command",
-            "v_WU_command",
-            "wrench_command",
-            "allocation_scale",
-            "saturation_ticks",
-        ):
-            builder.ExportOutput(controller.GetOutputPort(name), name)
-        builder.BuildInto(self)
         self._vehicle, self._controller = vehicle, controller
-        self._config, self._time_step = config, setting.time_step
+        return vehicle, controller
 
     def configure_simulator(self, simulator: Simulator) -> None:
-        """The integrator this vehicle needs (:func:`configure_simulator`)."""
-        configure_simulator(simulator, self._config, self._time_step)
+        """The integrator this vehicle needs (:func:`configure_simulator`); none when it is
+        stepped inside the plant (``runge_kutta3``: no continuous state)."""
+        if self._vehicle is not None:
+            configure_simulator(simulator, self._config, self._time_step)
 
     @property
-    def vehicle(self) -> MarineVehicle:
+    def period(self) -> float:
+        """The low-level controller's period h [s]."""
+        return self._period
+
+    @property
+    def vehicle(self) -> MarineVehicle | None:
+        """The continuous vehicle (``runge_kutta5``), else None."""
         return self._vehicle
 
     @property
-    def controller(self) -> LowLevelController:
+    def controller(self) -> LowLevelController | None:
+        """The controller's system (``runge_kutta5``), else None."""
         return self._controller

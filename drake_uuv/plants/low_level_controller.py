@@ -5,7 +5,7 @@ import math
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from drake_uuv.models.so3 import cross, exp_so3, log_so3
+from drake_uuv.models.vehicle_control import Latch, LowLevelLaw, Tick
 from drake_uuv.scenario.plants import HoveringAuv
 
 
@@ -63,7 +63,8 @@ class LowLevelController(LeafSystem):
 
     **Allocation.** ``τ`` goes to the thrusters through ``ThrustAllocator`` (weighted
     pseudo-inverse, attitude first under saturation); the thrusts are held for one fast
-    period (discrete state).
+    period (discrete state). The arithmetic of one tick is ``LowLevelLaw``
+    (``drake_uuv/models/vehicle_control.py``).
 
     .. pydrake_system::
 
@@ -100,48 +101,18 @@ class LowLevelController(LeafSystem):
         self, config: HoveringAuv, *, outer_period: float, initial_R_WB: np.ndarray
     ) -> None:
         super().__init__()
-        config.validate("config")
-        if not (math.isfinite(outer_period) and outer_period > 0.0):
-            raise ValueError(f"outer_period: must be > 0, got {outer_period!r}")
-        self._t = float(outer_period)
-        self._h = config.controller_period(self._t)
+        self._law = low_level_law(config, outer_period)
+        self._t, self._h = self._law.outer_period, self._law.period
         self._ratio = round(self._t / self._h)
-        self._half_h = 0.5 * self._h
-        self._model = config.vehicle_model()
-        self._allocator = config.allocator()
-        n = self._allocator.num_thrusters
-        omega, zeta = config.attitude_bandwidth, config.attitude_damping_ratio
-        self._kp = omega * omega  # [1/s²] on the attitude error
-        self._kd = 2.0 * zeta * omega  # [1/s] on the rate error
-        self._kv = config.velocity_bandwidth  # [1/s] on the velocity error
-        self._trajectory = config.attitude_reference == "trajectory"
         R0 = np.asarray(initial_R_WB, dtype=float)
         if R0.shape != (3, 3) or not np.allclose(R0.T @ R0, np.eye(3), atol=1e-9):
             raise ValueError(f"initial_R_WB: must be a rotation matrix, got {R0.tolist()!r}")
-
         self._u1_port = self.DeclareVectorInputPort("u1_B", 3)
         self._u2_port = self.DeclareVectorInputPort("u2_W", 3)
         self._R_port = self.DeclareVectorInputPort("R_WB", 9)
         self._nu_port = self.DeclareVectorInputPort("nu_B", 6)
-        # Latched at the outer tick: a_W (3), v_WU(kt) (3), R_WB(kt) (9), kt (1).
-        self._latch = self.DeclareDiscreteState(np.concatenate([np.zeros(6), R0.ravel(), [0.0]]))
-        self._target = self.DeclareDiscreteState(R0.ravel())
-        self._rate = self.DeclareDiscreteState(3)
-        self._velocity = self.DeclareDiscreteState(3)
-        self._thrust = self.DeclareDiscreteState(n)
-        self._wrench = self.DeclareDiscreteState(6)
-        self._scale = self.DeclareDiscreteState(np.ones(2))
-        # Counts for the run's statistics: fast ticks, and those whose force, moment, either
-        # the allocation had to scale down (a thruster at its limit).
-        self._saturation = self.DeclareDiscreteState(np.zeros(4))
+        self._states = ControllerStates(self, self._law.allocator.num_thrusters, R0)
         self.DeclarePeriodicDiscreteUpdateEvent(self._h, 0.0, self._update)
-        self.DeclareStateOutputPort("thrust_command", self._thrust)
-        self.DeclareStateOutputPort("R_WB_command", self._target)
-        self.DeclareStateOutputPort("w_WB_command", self._rate)
-        self.DeclareStateOutputPort("v_WU_command", self._velocity)
-        self.DeclareStateOutputPort("wrench_command", self._wrench)
-        self.DeclareStateOutputPort("allocation_scale", self._scale)
-        self.DeclareStateOutputPort("saturation_ticks", self._saturation)
 
     @property
     def period(self) -> float:
@@ -154,53 +125,114 @@ class LowLevelController(LeafSystem):
 
     def gains(self) -> dict[str, np.ndarray]:
         """The wrench-level gains: ``M_rot ω²``, ``2ζω M_rot`` and ``M_trans ω_v`` (see above)."""
-        M = self._model.M
-        return {
-            "attitude_stiffness": self._kp * M[3:, 3:],
-            "attitude_damping": self._kd * M[3:, 3:],
-            "velocity": self._kv * M[:3, :3],
-        }
+        return self._law.wrench_gains()
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         time = context.get_time()
-        R = self._R_port.Eval(context).reshape(3, 3)
-        nu = self._nu_port.Eval(context)
-        v_B, w_B = nu[:3], nu[3:]
-        v_W, w_W = R @ v_B, R @ w_B
+        R = rows(self._R_port.Eval(context))
+        nu = self._nu_port.Eval(context).tolist()
         if round(time / self._h) % self._ratio == 0:
             # An outer tick: latch the fresh commands and use them at once.
-            u2 = self._u2_port.Eval(context).copy()
-            a_W = R @ self._u1_port.Eval(context)
-            v_k, R_k, t_k = v_W, R, time
-            R_target = exp_so3(u2 * self._t) @ R_k
-            discrete_state.set_value(self._latch, np.concatenate([a_W, v_k, R_k.ravel(), [t_k]]))
-            discrete_state.set_value(self._target, R_target.ravel())
-            discrete_state.set_value(self._rate, u2)
+            u1, u2 = self._u1_port.Eval(context).tolist(), self._u2_port.Eval(context).tolist()
+            latch = fresh = self._law.latch(time, R, nu, u1, u2)
         else:
-            latch = context.get_discrete_state(self._latch).get_value()
-            a_W, v_k, R_k, t_k = latch[:3], latch[3:6], latch[6:15].reshape(3, 3), latch[15]
-            u2 = context.get_discrete_state(self._rate).get_value()
-            R_target = context.get_discrete_state(self._target).get_value().reshape(3, 3)
-        s = time - t_k
-        if self._trajectory:
-            R_ref, w_ref = exp_so3(u2 * s) @ R_k, u2
-        else:
-            R_ref, w_ref = R_target, 0.0
-        v_ref = v_k + a_W * s
-        alpha_W = self._kp * log_so3(R_ref @ R.T) + self._kd * (w_ref - w_W)
-        a_cmd_W = a_W + self._kv * (v_ref - v_W)
-        # Rows [a_cmd_W, α_W] @ R = [R_WBᵀ a_cmd_W, R_WBᵀ α_W]; then v̇_B = R_WBᵀ v̇_W − ω_B × v_B.
-        nu_dot = (np.array([a_cmd_W, alpha_W]) @ R).ravel()
-        nu_dot[:3] -= cross(w_B, v_B)
-        # The thrust is held for h while ν moves on: the bias at mid-period, ν + ½h ν̇_des,
-        # makes the held wrench right to second order in h (drag grows with the speed).
-        wrench = self._model.M @ nu_dot + self._model.bias_force(nu + self._half_h * nu_dot, R)
-        thrust, force_scale, moment_scale = self._allocator.allocate(wrench)
-        discrete_state.set_value(self._thrust, thrust)
-        discrete_state.set_value(self._velocity, v_ref)
-        discrete_state.set_value(self._wrench, wrench)
-        discrete_state.set_value(self._scale, np.array([force_scale, moment_scale]))
-        scaled = (1.0, force_scale < 1.0, moment_scale < 1.0, min(force_scale, moment_scale) < 1.0)
+            latch, fresh = self._states.latch(context), None
+        tick = self._law.tick(time - latch.t_k, R, nu, latch)
+        self._states.store(context, discrete_state, tick, fresh, saturation_counts([tick]))
+
+
+def rows(R_WB: np.ndarray) -> list[list[float]]:
+    """A row-major 9-vector as 3 rows of Python floats."""
+    r = R_WB.tolist()
+    return [r[0:3], r[3:6], r[6:9]]
+
+
+def low_level_law(config: HoveringAuv, outer_period: float) -> LowLevelLaw:
+    """The law of ``config``'s controller for an outer period t (validated, > 0)."""
+    config.validate("config")
+    if not (math.isfinite(outer_period) and outer_period > 0.0):
+        raise ValueError(f"outer_period: must be > 0, got {outer_period!r}")
+    omega, zeta = config.attitude_bandwidth, config.attitude_damping_ratio
+    return LowLevelLaw(
+        config.vehicle_model(),
+        config.allocator(),
+        period=config.controller_period(outer_period),
+        outer_period=float(outer_period),
+        gains=(omega * omega, 2.0 * zeta * omega, config.velocity_bandwidth),
+        trajectory=config.attitude_reference == "trajectory",
+    )
+
+
+def saturation_counts(ticks: list[Tick]) -> list[float]:
+    """Of ``ticks``: how many, and how many had their force, moment, either scaled down."""
+    force = sum(t.force_scale < 1.0 for t in ticks)
+    moment = sum(t.moment_scale < 1.0 for t in ticks)
+    either = sum(min(t.force_scale, t.moment_scale) < 1.0 for t in ticks)
+    return [float(len(ticks)), float(force), float(moment), float(either)]
+
+
+class ControllerStates:
+    """The controller's discrete state on ``system`` and the outputs that publish it.
+
+    Groups, declared in this order: the latch ``[a_W, v_WU(kt), R_WB(kt) (9), kt]`` (16), the
+    target ``R(k+1)`` (9), the rate ``u2`` (3), the velocity reference (3), the thrusts (n),
+    the wrench (6), the allocation's scales (2), the saturation counts (4); every group but
+    the latch is published by a state output port (``LowLevelController``'s outputs).
+    """
+
+    def __init__(self, system: LeafSystem, num_thrusters: int, initial_R_WB: np.ndarray) -> None:
+        R0 = initial_R_WB.ravel()
+        self.latch_group = system.DeclareDiscreteState(np.concatenate([np.zeros(6), R0, [0.0]]))
+        self.target = system.DeclareDiscreteState(R0)
+        self.rate = system.DeclareDiscreteState(3)
+        self.velocity = system.DeclareDiscreteState(3)
+        self.thrust = system.DeclareDiscreteState(num_thrusters)
+        self.wrench = system.DeclareDiscreteState(6)
+        self.scale = system.DeclareDiscreteState(np.ones(2))
+        # Counts for the run's statistics: fast ticks, and those whose force, moment, either
+        # the allocation had to scale down (a thruster at its limit).
+        self.saturation = system.DeclareDiscreteState(np.zeros(4))
+        for name, group in (
+            ("thrust_command", self.thrust),
+            ("R_WB_command", self.target),
+            ("w_WB_command", self.rate),
+            ("v_WU_command", self.velocity),
+            ("wrench_command", self.wrench),
+            ("allocation_scale", self.scale),
+            ("saturation_ticks", self.saturation),
+        ):
+            system.DeclareStateOutputPort(name, group)
+
+    def latch(self, context: Context) -> Latch:
+        """The latch of the last outer tick."""
+        latch, target, rate = (
+            context.get_discrete_state(group).value()
+            for group in (self.latch_group, self.target, self.rate)
+        )
+        a_W, v_k, R_k, t_k = latch[:3], latch[3:6], latch[6:15], latch[15]
+        return Latch(a_W.tolist(), v_k.tolist(), rows(R_k), float(t_k), rate.tolist(),
+                     rows(target))  # fmt: skip
+
+    def store(
+        self,
+        context: Context,
+        discrete_state: DiscreteValues,
+        tick: Tick,
+        latch: Latch | None,
+        counts: list[float],
+    ) -> None:
+        """Writes the last tick's outputs, a fresh latch if given, and adds ``counts``."""
+        if latch is not None:
+            R_k, R_target = latch.R_k, latch.R_target
+            discrete_state.set_value(
+                self.latch_group, [*latch.a_W, *latch.v_k, *R_k[0], *R_k[1], *R_k[2], latch.t_k]
+            )
+            discrete_state.set_value(self.target, [*R_target[0], *R_target[1], *R_target[2]])
+            discrete_state.set_value(self.rate, latch.u2)
+        discrete_state.set_value(self.thrust, tick.thrust)
+        discrete_state.set_value(self.velocity, tick.v_ref)
+        discrete_state.set_value(self.wrench, tick.wrench)
+        discrete_state.set_value(self.scale, [tick.force_scale, tick.moment_scale])
         discrete_state.set_value(
-            self._saturation, context.get_discrete_state(self._saturation).value() + scaled
+            self.saturation, context.get_discrete_state(self.saturation).value() + counts
         )

@@ -21,7 +21,7 @@ from drake_uuv.analysis.vehicle_figures import (
 from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.so3 import exp_so3, log_so3
 from drake_uuv.plants import PlantSetting
-from drake_uuv.plants.hovering_auv import HoveringAuvPlant, configure_simulator
+from drake_uuv.plants.hovering_auv import HoveringAuvPlant
 from drake_uuv.scenario import ScenarioError, load_scenario
 from drake_uuv.scenario.plants import HoveringAuv
 from tests.conftest import T
@@ -46,19 +46,31 @@ def make_plant(config: HoveringAuv | None = None, **setting) -> HoveringAuvPlant
     return HoveringAuvPlant(config or HoveringAuv(), setting=PlantSetting(**{**args, **setting}))
 
 
-def test_ports_and_systems() -> None:
-    plant = make_plant()
+INTEGRATORS = {
+    "runge_kutta3": ["stepped_vehicle"],
+    "runge_kutta5": ["vehicle", "low_level_controller"],
+}
+
+
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_ports_and_systems(integrator: str) -> None:
+    plant = make_plant(HoveringAuv(integrator=integrator))
     assert {plant.get_input_port(i).get_name(): plant.get_input_port(i).size()
             for i in range(plant.num_input_ports())} == INPUTS  # fmt: skip
     assert {plant.get_output_port(i).get_name(): plant.get_output_port(i).size()
             for i in range(plant.num_output_ports())} == OUTPUTS  # fmt: skip
-    assert [s.get_name() for s in plant.GetSystems()] == ["vehicle", "low_level_controller"]
+    assert [s.get_name() for s in plant.GetSystems()] == INTEGRATORS[integrator]
+    assert plant.period == pytest.approx(0.02)
     # The outer loop's feedthrough outputs read p_WU, v_WU, R_WB: none may depend on u1, u2.
     assert not plant.HasAnyDirectFeedthrough()
+    # Stepped inside the plant, the vehicle has no continuous state for Drake to integrate.
+    context = plant.CreateDefaultContext()
+    assert context.num_continuous_states() == (13 if integrator == "runge_kutta5" else 0)
 
 
-def test_initial_outputs_are_the_initial_state() -> None:
-    plant = make_plant()
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_initial_outputs_are_the_initial_state(integrator: str) -> None:
+    plant = make_plant(HoveringAuv(integrator=integrator))
     context = plant.CreateDefaultContext()
     R0 = RotationMatrix(RollPitchYaw(0.0, 0.0, 0.3)).matrix()
     assert_allclose(plant.GetOutputPort("p_WU").Eval(context), [1.0, -2.0, 3.0])
@@ -76,7 +88,7 @@ def simulate(plant: HoveringAuvPlant, u1: np.ndarray, u2: np.ndarray, steps: int
     names = ("p_WU", "v_WU", "R_WB", "R_WB_command", "w_WB", "w_WB_command", "thrust")
     loggers = {n: LogVectorOutput(plant.GetOutputPort(n), builder, T) for n in names}
     simulator = Simulator(builder.Build())
-    configure_simulator(simulator, HoveringAuv(), T)
+    plant.configure_simulator(simulator)
     simulator.AdvanceTo(steps * T - 1e-9)
     context = simulator.get_context()
     log = {n: logger.FindLog(context).data().T for n, logger in loggers.items()}
@@ -84,11 +96,12 @@ def simulate(plant: HoveringAuvPlant, u1: np.ndarray, u2: np.ndarray, steps: int
     return log
 
 
-def test_thrusters_reproduce_the_papers_step() -> None:
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_thrusters_reproduce_the_papers_step(integrator: str) -> None:
     # X(k+1) = A X(k) + B R(k) u1, R(k+1) = Exp(u2 t) R(k) (paper eqs. 1–2), each step from the
     # state the vehicle actually reached. Gentle commands: the loop is unsaturated.
     u1, u2 = np.array([0.1, -0.05, 0.03]), np.array([0.05, -0.1, 0.2])
-    log = simulate(make_plant(), u1, u2, 9)
+    log = simulate(make_plant(HoveringAuv(integrator=integrator)), u1, u2, 9)
     A, B = double_integrator(T)
     for k in range(1, 8):
         R = log["R_WB"][k].reshape(3, 3)

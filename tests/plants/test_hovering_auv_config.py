@@ -8,7 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 from pydrake.common.yaml import yaml_load_typed
 
-from drake_uuv.scenario import ScenarioError
+from drake_uuv.scenario import ScenarioError, load_scenario
 from drake_uuv.scenario.plants import HoveringAuv
 
 
@@ -115,7 +115,24 @@ BAD = [
         "ramp",
         r"uuv\.attitude_reference: must be one of trajectory, step, got 'ramp'",
     ),
+    (
+        "integrator",
+        "euler",
+        r"uuv\.integrator: must be one of runge_kutta3, runge_kutta5, got 'euler'",
+    ),
     ("integrator_accuracy", 0.5, r"uuv\.integrator_accuracy: must be in \(0, 0\.1\], got 0\.5"),
+    (
+        "controller_rate",
+        10.0,
+        r"uuv\.controller_rate: must be ≥ 20 Hz with integrator runge_kutta3 \(one fixed step per "
+        r"period; runge_kutta5 has no such limit\), got 10\.0$",
+    ),
+    (
+        "thrust_time_constant",
+        0.01,
+        r"uuv\.thrust_time_constant: must be 0 or ≥ 1/controller_rate = 0\.02 s with integrator "
+        r"runge_kutta3 .*, got 0\.01$",
+    ),
 ]
 
 
@@ -126,6 +143,25 @@ def test_validate_names_the_first_bad_field_and_its_value(
     config = dataclasses.replace(HoveringAuv(), **{field: value})
     with pytest.raises(ScenarioError, match=f"^{message}"):
         config.validate("uuv")
+
+
+def test_the_fixed_step_limits_bind_only_the_fixed_step() -> None:
+    # One RK3 step per controller period: a slow controller or a lag shorter than the period
+    # would make it unstable; the error-controlled RK5 shortens its steps instead.
+    for config in (HoveringAuv(controller_rate=10.0), HoveringAuv(thrust_time_constant=0.01)):
+        dataclasses.replace(config, integrator="runge_kutta5").validate("uuv")
+    HoveringAuv(thrust_time_constant=0.02).validate("uuv")  # exactly one period
+
+
+def test_the_default_integrator_is_the_fixed_step() -> None:
+    assert HoveringAuv().integrator == "runge_kutta3"
+    with pytest.raises(
+        ScenarioError,
+        match=r"^plant\.integrator: must be one of runge_kutta3, runge_kutta5, got 'rk4'$",
+    ):
+        load_scenario("hovering_auv", ["plant.integrator=rk4"])
+    accurate = load_scenario("hovering_auv", ["plant.integrator=runge_kutta5"]).plant
+    assert accurate.integrator == "runge_kutta5"
 
 
 def test_thrust_lag_counts_against_the_bandwidth() -> None:

@@ -9,11 +9,13 @@ from numpy.testing import assert_allclose
 from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
 from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import ConstantVectorSource
+from pydrake.systems.primitives import ConstantVectorSource, ZeroOrderHold
 
+from drake_uuv.models.marine_vehicle import rotation_from_quaternion
 from drake_uuv.models.so3 import exp_so3, log_so3
+from drake_uuv.models.vehicle_dynamics import VehicleDynamics
 from drake_uuv.plants.hovering_auv import configure_simulator
-from drake_uuv.plants.marine_vehicle import MarineVehicle
+from drake_uuv.plants.marine_vehicle import MarineVehicle, vehicle_initial_state
 from drake_uuv.scenario.plants import HoveringAuv
 from drake_uuv.testing import fixed_context
 from tests.plants.multibody_vehicle import MultibodyVehicle
@@ -38,6 +40,12 @@ def marine_vehicle(
     )
 
 
+def accurate(config: HoveringAuv) -> HoveringAuv:
+    """``config`` integrated by Drake's error-controlled RK5 (the continuous model's physics;
+    the default fixed step is checked against the MultibodyPlant below)."""
+    return dataclasses.replace(config, integrator="runge_kutta5")
+
+
 def simulate(
     vehicle: MarineVehicle,
     config: HoveringAuv,
@@ -51,7 +59,7 @@ def simulate(
     source = builder.AddSystem(ConstantVectorSource(np.zeros(8) if thrust is None else thrust))
     builder.Connect(source.get_output_port(), vehicle.get_input_port())
     simulator = Simulator(builder.Build())
-    configure_simulator(simulator, config, 0.5)
+    configure_simulator(simulator, accurate(config), 0.5)
     context = vehicle.GetMyContextFromRoot(simulator.get_context())
     result = []
     for time in np.linspace(duration / samples, duration, samples):
@@ -205,7 +213,7 @@ def test_quaternion_off_the_unit_sphere_is_pulled_back() -> None:
     source = builder.AddSystem(ConstantVectorSource(np.zeros(8)))
     builder.Connect(source.get_output_port(), vehicle.get_input_port())
     simulator = Simulator(builder.Build())
-    configure_simulator(simulator, config, 0.5)
+    configure_simulator(simulator, accurate(config), 0.5)
     context = vehicle.GetMyMutableContextFromRoot(simulator.get_mutable_context())
     x = context.get_continuous_state_vector().CopyToVector()
     x[3:7] *= 1.05  # as if the integrator had drifted
@@ -219,69 +227,113 @@ def test_quaternion_off_the_unit_sphere_is_pulled_back() -> None:
     assert_allclose(R.T @ R, np.eye(3), atol=1e-14)
 
 
-class SmoothThrust(LeafSystem):
+def smooth_thrust(config: HoveringAuv, t: float) -> np.ndarray:
     """Thrusts that turn and move the vehicle: the allocation of a sinusoidal body wrench."""
+    wrench = [
+        60 * math.sin(0.7 * t), 40 * math.cos(0.5 * t), 30 * math.sin(0.9 * t),
+        8 * math.sin(1.1 * t), 6 * math.cos(0.8 * t), 10 * math.sin(0.6 * t) + 5,
+    ]  # fmt: skip
+    return config.allocator().A_pinv @ wrench
+
+
+class SmoothThrust(LeafSystem):
+    """:func:`smooth_thrust` as a source (output ``thrust_command``)."""
 
     def __init__(self, config: HoveringAuv) -> None:
         super().__init__()
-        self._pinv = config.allocator().A_pinv
+        self._config = config
         self.DeclareVectorOutputPort("thrust_command", 8, self._calc)
 
     def _calc(self, context: Context, output: BasicVector) -> None:
-        t = context.get_time()
-        wrench = [
-            60 * math.sin(0.7 * t), 40 * math.cos(0.5 * t), 30 * math.sin(0.9 * t),
-            8 * math.sin(1.1 * t), 6 * math.cos(0.8 * t), 10 * math.sin(0.6 * t) + 5,
-        ]  # fmt: skip
-        output.set_value(self._pinv @ wrench)
+        output.set_value(smooth_thrust(self._config, context.get_time()))
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("time_constant", [0.0, 0.05])
-def test_leaf_system_agrees_with_the_multibody_plant_to_a_micrometre(time_constant: float) -> None:
+def cross_check_config(time_constant: float) -> HoveringAuv:
     # Added mass off (SpatialInertia holds one scalar mass); G off the body origin so that the
     # rigid-body Coriolis terms of M_RB's off-diagonal blocks are exercised; buoyancy ≠ weight.
-    config = dataclasses.replace(
+    return dataclasses.replace(
         HoveringAuv(),
         added_mass=np.zeros((6, 6)).tolist(),
         center_of_gravity=[0.01, -0.02, -0.03],
         buoyancy=31.02 * 9.81 + 2.0,
         thrust_time_constant=time_constant,
     )
-    p0, v0, w0 = np.array([1.0, 2.0, 3.0]), np.array([0.1, -0.2, 0.05]), np.array([0.3, 0.1, -0.2])
-    R0 = exp_so3(np.array([0.2, -0.1, 0.5]))
-    final = {}
-    for name, system in (
-        ("leaf", marine_vehicle(config, p0, v0, R0, w0)),
-        ("multibody", MultibodyVehicle(config)),
-    ):
-        builder = DiagramBuilder()
-        builder.AddSystem(system)
-        source = builder.AddSystem(SmoothThrust(config))
-        builder.Connect(source.get_output_port(), system.GetInputPort("thrust_command"))
-        simulator = Simulator(builder.Build())
-        root = simulator.get_mutable_context()
-        if name == "leaf":
-            configure_simulator(simulator, config, 0.5)  # the default accuracy, as deployed
-        else:
-            config_mbp = SimulatorConfig(integration_scheme="runge_kutta5", accuracy=1e-10)
-            ApplySimulatorConfig(config_mbp, simulator)
-            system.set_initial_state(root, p0, R0, v0, w0)
-        simulator.AdvanceTo(10.0)
-        if name == "leaf":
-            context = system.GetMyContextFromRoot(root)
-            p = system.GetOutputPort("p_WU").Eval(context)
-            R = system.GetOutputPort("R_WB").Eval(context).reshape(3, 3)
-            v = system.GetOutputPort("v_WU").Eval(context)
-        else:
-            X, V = system.pose(root), system.spatial_velocity(root)
-            p, R, v = X.translation(), X.rotation().matrix(), V.translational()
-        final[name] = p, R, v
-    (p_leaf, R_leaf, v_leaf), (p_mb, R_mb, v_mb) = final["leaf"], final["multibody"]
-    assert np.linalg.norm(p_mb - p0) > 1.5 and np.linalg.norm(log_so3(R_mb @ R0.T)) > 0.5
-    assert np.linalg.norm(p_leaf - p_mb) < 1e-6
-    assert np.linalg.norm(log_so3(R_leaf @ R_mb.T)) < 1e-6
-    assert np.linalg.norm(v_leaf - v_mb) < 1e-6
+
+
+P0, V0, W0 = np.array([1.0, 2.0, 3.0]), np.array([0.1, -0.2, 0.05]), np.array([0.3, 0.1, -0.2])
+R0_CROSS = exp_so3(np.array([0.2, -0.1, 0.5]))
+DURATION = 10.0
+
+
+def multibody_final(config: HoveringAuv, held: float | None) -> tuple[np.ndarray, ...]:
+    """p, R, v of the MultibodyPlant model after 10 s of :func:`smooth_thrust`, held over
+    periods ``held`` (a ZeroOrderHold) if given, integrated by RK5 at accuracy 1e-10."""
+    system = MultibodyVehicle(config)
+    builder = DiagramBuilder()
+    builder.AddSystem(system)
+    source = builder.AddSystem(SmoothThrust(config))
+    if held is not None:
+        hold = builder.AddSystem(ZeroOrderHold(held, 8))
+        builder.Connect(source.get_output_port(), hold.get_input_port())
+        source = hold
+    builder.Connect(source.get_output_port(), system.GetInputPort("thrust_command"))
+    simulator = Simulator(builder.Build())
+    ApplySimulatorConfig(SimulatorConfig(integration_scheme="runge_kutta5", accuracy=1e-10),
+                         simulator)  # fmt: skip
+    root = simulator.get_mutable_context()
+    system.set_initial_state(root, P0, R0_CROSS, V0, W0)
+    simulator.AdvanceTo(DURATION)
+    X, V = system.pose(root), system.spatial_velocity(root)
+    return X.translation(), X.rotation().matrix(), V.translational()
+
+
+def assert_close_to(final: tuple[np.ndarray, ...], reference: tuple[np.ndarray, ...],
+                    tolerance: float) -> None:  # fmt: skip
+    (p, R, v), (p_mb, R_mb, v_mb) = final, reference
+    assert np.linalg.norm(p_mb - P0) > 1.5 and np.linalg.norm(log_so3(R_mb @ R0_CROSS.T)) > 0.5
+    assert np.linalg.norm(p - p_mb) < tolerance
+    assert np.linalg.norm(log_so3(R @ R_mb.T)) < tolerance
+    assert np.linalg.norm(v - v_mb) < tolerance
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("time_constant", [0.0, 0.05])
+def test_leaf_system_agrees_with_the_multibody_plant_to_a_micrometre(time_constant: float) -> None:
+    # runge_kutta5: the continuous LeafSystem under Drake's error-controlled RK5 at the
+    # deployed accuracy, the thrust smooth in time.
+    config = cross_check_config(time_constant)
+    leaf = marine_vehicle(config, P0, V0, R0_CROSS, W0)
+    builder = DiagramBuilder()
+    builder.AddSystem(leaf)
+    source = builder.AddSystem(SmoothThrust(config))
+    builder.Connect(source.get_output_port(), leaf.GetInputPort("thrust_command"))
+    simulator = Simulator(builder.Build())
+    configure_simulator(simulator, accurate(config), 0.5)  # the default accuracy
+    simulator.AdvanceTo(DURATION)
+    context = leaf.GetMyContextFromRoot(simulator.get_context())
+    final = tuple(leaf.GetOutputPort(n).Eval(context) for n in ("p_WU", "R_WB", "v_WU"))
+    final = final[0], final[1].reshape(3, 3), final[2]
+    assert_close_to(final, multibody_final(config, None), 1e-6)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("time_constant", [0.0, 0.05])
+def test_the_fixed_step_agrees_with_the_multibody_plant(time_constant: float) -> None:
+    # runge_kutta3 as deployed (SteppedHoveringAuv): the thrust held over each controller
+    # period h = 0.02 s and one VehicleDynamics.step per period, against the MultibodyPlant
+    # under the same held thrust at accuracy 1e-10. RK3's global error, O(h³), is what
+    # remains: 1.2e-5 m over these 10 s (1.4e-5 m with the lag); holding the thrust instead
+    # of following it moves the vehicle 1.5e-2 m, so the hold is what both models integrate.
+    config = cross_check_config(time_constant)
+    h = config.controller_period(0.5)
+    dynamics = VehicleDynamics(config.vehicle_model(), config.allocator(), time_constant)
+    lag_states = dynamics.num_thrusters if dynamics.lag else 0
+    x = vehicle_initial_state(P0, V0, R0_CROSS, W0, lag_states).tolist()
+    for j in range(round(DURATION / h)):
+        x = dynamics.step(x, smooth_thrust(config, j * h).tolist(), h)
+    R = rotation_from_quaternion(np.array(x[3:7]))
+    final = np.array(x[:3]), R, R @ x[7:10]
+    assert_close_to(final, multibody_final(config, h), 3e-5)
 
 
 def test_multibody_vehicle_refuses_added_mass() -> None:
