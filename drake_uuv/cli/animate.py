@@ -3,12 +3,7 @@
 import argparse
 from pathlib import Path
 
-from drake_uuv.cli.options import (
-    UsageError,
-    add_out_option,
-    add_scenario_options,
-    scenario_from_args,
-)
+from drake_uuv.cli.options import UsageError, add_command, scenario_from_args
 
 
 def _animate(args: argparse.Namespace) -> int:
@@ -39,11 +34,10 @@ def _animate(args: argparse.Namespace) -> int:
 
 def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     """Registers ``drake-uuv animate``."""
-    parser = subparsers.add_parser(
-        "animate", help="simulate and write a self-contained 3-D animation (HTML)"
-    )
-    add_scenario_options(parser)
-    add_out_option(parser, "out/paper", "output folder of animation.html")
+    parser = add_command(
+        subparsers, "animate", _animate, ("out/paper", "output folder of animation.html"),
+        help="simulate and write a self-contained 3-D animation (HTML)",
+    )  # fmt: skip
     parser.add_argument(
         "--playback-speed", type=float, default=4.0, help="simulated seconds per second (4)"
     )
@@ -55,4 +49,3 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="world-fixed view instead of following the target",
     )
-    parser.set_defaults(handler=_animate)

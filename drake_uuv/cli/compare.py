@@ -16,9 +16,7 @@ from pathlib import Path
 from drake_uuv.cli.options import (
     EXIT_INTERRUPTED,
     UsageError,
-    add_execution_options,
-    add_out_option,
-    add_scenario_options,
+    add_command,
     execution_options,
 )
 
@@ -67,8 +65,12 @@ def _compare(args: argparse.Namespace) -> int:
 
 def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     """Registers ``drake-uuv compare``."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "compare",
+        _compare,
+        ("out/compare", "output folder: compare.md, compare.csv, studies"),
+        study=True,
         help="Monte Carlo tables of named groups of scenario variants (default: the paper's "
         "groups; --group list shows them all)",
         description="Runs every variant of the chosen groups as Monte Carlo studies and writes "
@@ -76,8 +78,6 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         "wall time, from one timed run of each configuration (plant, estimator, particles, "
         "attitude, steps) among the variants.",
     )
-    add_scenario_options(parser)
-    add_execution_options(parser)
     parser.add_argument(
         "--group",
         dest="groups",
@@ -97,5 +97,3 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         help="folder of the study groups, a package whose __init__.py defines GROUPS "
         "(default: the studies/ folder of the checkout drake_uuv was imported from)",
     )
-    add_out_option(parser, "out/compare", "output folder: compare.md, compare.csv, studies")
-    parser.set_defaults(handler=_compare)

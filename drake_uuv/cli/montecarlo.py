@@ -11,9 +11,7 @@ from pathlib import Path
 from drake_uuv.cli.options import (
     EXIT_INTERRUPTED,
     UsageError,
-    add_execution_options,
-    add_out_option,
-    add_scenario_options,
+    add_command,
     execution_options,
     scenario_from_args,
 )
@@ -47,10 +45,8 @@ def _montecarlo(args: argparse.Namespace) -> int:
 
 def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     """Registers ``drake-uuv montecarlo``."""
-    parser = subparsers.add_parser(
-        "montecarlo", help="many seeded runs: runs.csv, summary.json, error bands"
-    )
-    add_scenario_options(parser)
-    add_execution_options(parser)
-    add_out_option(parser, "out/montecarlo", "output folder: runs, runs.csv, summary.json")
-    parser.set_defaults(handler=_montecarlo)
+    add_command(
+        subparsers, "montecarlo", _montecarlo,
+        ("out/montecarlo", "output folder: runs, runs.csv, summary.json"), study=True,
+        help="many seeded runs: runs.csv, summary.json, error bands",
+    )  # fmt: skip

@@ -73,6 +73,27 @@ def add_out_option(parser: argparse.ArgumentParser, default: str, what: str) -> 
     parser.set_defaults(output_folder=True)
 
 
+def add_command(
+    subparsers: argparse._SubParsersAction,
+    name: str,
+    handler: Callable[[argparse.Namespace], int],
+    out: tuple[str, str],
+    *,
+    study: bool = False,
+    **parser_fields: str,
+) -> argparse.ArgumentParser:
+    """Registers ``drake-uuv NAME`` (``parser_fields``: ``help``, ``description``): the scenario
+    options, with ``study`` the execution options, ``--out`` of ``out`` (default, what) and
+    ``handler``. Returns the parser for the command's own options."""
+    parser = subparsers.add_parser(name, **parser_fields)
+    add_scenario_options(parser)
+    if study:
+        add_execution_options(parser)
+    add_out_option(parser, *out)
+    parser.set_defaults(handler=handler)
+    return parser
+
+
 def add_execution_options(parser: argparse.ArgumentParser) -> None:
     """The options of how a study runs: runs, workers, scheduler, resume, chunk size, progress."""
     parser.add_argument("--runs", type=int, default=100, help="runs per study (default: 100)")

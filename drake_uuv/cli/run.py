@@ -4,12 +4,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from drake_uuv.cli.options import (
-    UsageError,
-    add_out_option,
-    add_scenario_options,
-    scenario_from_args,
-)
+from drake_uuv.cli.options import UsageError, add_command, scenario_from_args
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -45,11 +40,10 @@ def _run(args: argparse.Namespace) -> int:
 
 def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
     """Registers ``drake-uuv run``."""
-    parser = subparsers.add_parser(
-        "run", help="simulate one scenario and write its log, metrics, figures"
-    )
-    add_scenario_options(parser)
-    add_out_option(parser, "out/paper", "output folder: log, metrics, figures")
+    parser = add_command(
+        subparsers, "run", _run, ("out/paper", "output folder: log, metrics, figures"),
+        help="simulate one scenario and write its log, metrics, figures",
+    )  # fmt: skip
     parser.add_argument(
         "--meshcat", action="store_true", help="draw the scene live in Meshcat (localhost)"
     )
@@ -60,4 +54,3 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         help="pace the simulation at this multiple of real time (0: as fast as possible; "
         "with --meshcat, try 10)",
     )
-    parser.set_defaults(handler=_run)

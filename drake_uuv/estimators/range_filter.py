@@ -26,13 +26,13 @@ import math
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues
 
-from drake_uuv.estimators.base import (
+from drake_uuv.estimators.base import RelativeStateEstimator
+from drake_uuv.estimators.contract import (
     Estimate,
     EstimatorSetting,
     FilteredEstimate,
     MeasurementUpdate,
     Ranges,
-    RelativeStateEstimator,
 )
 from drake_uuv.estimators.linear_start import LinearStart
 from drake_uuv.estimators.particle_cloud import ParticleCloud

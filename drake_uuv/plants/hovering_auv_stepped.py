@@ -36,28 +36,9 @@ class SteppedHoveringAuv(LeafSystem):
     state at (k+1)t. A system that needs the motion between ticks (a live view) needs the
     continuous vehicle (``integrator: runge_kutta5``).
 
-    .. pydrake_system::
-
-        name: SteppedHoveringAuv
-        input_ports:
-        - u1_B
-        - u2_W
-        output_ports:
-        - p_WU
-        - v_WU
-        - R_WB
-        - w_WB
-        - nu_B
-        - thrust
-        - thrust_command
-        - R_WB_command
-        - w_WB_command
-        - v_WU_command
-        - wrench_command
-        - allocation_scale
-        - saturation_ticks
-
-    The ports are ``HoveringAuvPlant``'s (see there).
+    Ports: ``HoveringAuvPlant``'s, the same names, sizes and meanings (its
+    ``pydrake_system`` block lists them: the plant exports this system's ports one for one,
+    so the list is kept in one place).
     """
 
     def __init__(self, config: HoveringAuv, *, setting: PlantSetting) -> None:
