@@ -124,6 +124,8 @@ class RelativeStateEstimator(LeafSystem):
                 setting.navigation_errors, setting.ping_schedule, setting.sound_speed_error,
                 navigated,
             )  # fmt: skip
+        # The model is frozen: whether it adds anything is known once, not asked every step.
+        self._model_active = self._error_model.active
         self._window = None
         if not self._error_model.schedule.immediate:
             self._window = PingWindow(
@@ -281,13 +283,13 @@ class RelativeStateEstimator(LeafSystem):
             _, current = self._window.steps(context, samples, status)
             samples = np.where(current[:, np.newaxis], samples, np.nan)
             status = np.where(current, status, NO_ARRIVAL)
-        valid = (np.asarray(status) == VALID) & np.all(np.isfinite(samples), axis=1)
+        valid = (status == VALID) & np.isfinite(samples).all(axis=1)
         R_WB = self._attitude_port.Eval(context).reshape(3, 3)
         q_s = R_WB @ self._b
-        z = samples.mean(axis=1)
-        model = self._error_model
-        if not model.active:
+        z = samples.sum(axis=1) / self._f  # samples.mean(axis=1)'s arithmetic, without its wrapper
+        if not self._model_active:
             return Ranges(samples, z, valid, status, q_s)
+        model = self._error_model
         return Ranges(
             samples, z, valid, status, q_s, model.attitude_covariance(R_WB), model.range_variance(z)
         )
@@ -303,7 +305,7 @@ class RelativeStateEstimator(LeafSystem):
         estimate, in the frame the state stores (see :attr:`vehicle_motion`)."""
         motion = self.vehicle_motion
         return predict(
-            x - motion.offset(context), P, motion.acceleration(context), self._A, self._B,
+            motion.stored(context, x), P, motion.acceleration(context), self._A, self._B,
             self._Q,
         )  # fmt: skip
 
@@ -346,7 +348,7 @@ class RelativeStateEstimator(LeafSystem):
         estimate = self.filtered_estimate(context)
         if estimate is None:
             estimate = self._filtered_by_update(context)
-        estimate.floor = self._error_model.floor(estimate.x)
+        estimate.floor = self._error_model.floor(estimate.x) if self._model_active else None
         value.set_value(estimate)
 
     def _filtered_by_update(self, context: Context) -> FilteredEstimate:
