@@ -271,9 +271,12 @@ class SonarMeasurement(LeafSystem):
                 "measurement", size, self._calc_timed_output, {self._measurement.ticket()}
             )
         else:
-            self.DeclareVectorOutputPort(
-                "measurement", size, self._calc_output, {self.all_sources_ticket()}
-            )
+            # Without timing, faults or a beam every ping is at the tick and every range
+            # returns: the output straight from the inputs (the same arithmetic, no pings).
+            plain = self._prior_port is None and self._faults.max_range is None
+            plain = plain and not self._faults.random_faults
+            calc = self._calc_plain_output if plain else self._calc_output
+            self.DeclareVectorOutputPort("measurement", size, calc, {self.all_sources_ticket()})
 
     def _declare_timing(self) -> None:
         """With timing: the velocity inputs, the previous tick's geometry, one FIFO per sonar
@@ -308,6 +311,29 @@ class SonarMeasurement(LeafSystem):
 
     def _calc_timed_output(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._packed(self._measurement.Eval(context)))
+
+    def _calc_plain_output(self, context: Context, output: BasicVector) -> None:
+        """:meth:`_calc_output` of a sonar without timing, faults or a beam: both pings at
+        the tick (:func:`tick_ping`'s ``q ± ½ q_s``), both ranges returned, status VALID."""
+        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
+        q_s = R_WB @ self._b
+        q = self._uuv_port.Eval(context) - self._target_port.Eval(context)
+        half = 0.5 * q_s
+        p_TS_W = (q + half, q + -half)
+        true_ranges = np.array([math.sqrt(float(p @ p)) for p in p_TS_W])
+        measured = true_ranges if self._scale == 1.0 else self._scale * true_ranges
+        noise = self._noise_port.Eval(context).reshape(2, self._f)
+        samples = measured[:, np.newaxis] + self._sigma * noise
+        Y, m, gamma = self._paper_measurement(samples)
+        now = context.get_time()
+        output.set_value(
+            np.concatenate(
+                (
+                    samples[:, 0], samples.ravel(), (Y, m, gamma), q_s,
+                    (0.0, 0.0, 0.0, 0.0, now, now), p_TS_W[0], p_TS_W[1],
+                )
+            )
+        )  # fmt: skip
 
     @staticmethod
     def _packed(measurement: _Measurement) -> np.ndarray:
