@@ -84,6 +84,7 @@ class DualSonar(Diagram):
         - v_WU (with timing)
         - v_WT (with timing)
         - x_TU_prior (with a beam)
+        - R_WB_nav (with a beam)
         - P_TU_prior (with a beam)
         - fault_uniform (with dropouts or outliers)
         - multipath_noise (with dropouts or outliers)
@@ -192,19 +193,11 @@ class SonarMeasurement(LeafSystem):
     .. pydrake_system::
 
         name: SonarMeasurement
-        input_ports:
-        - p_WU
-        - R_WB
-        - p_WT
-        - range_noise
-        - v_WU (with timing)
-        - v_WT (with timing)
-        - x_TU_prior (with a beam)
-        - P_TU_prior (with a beam)
-        - fault_uniform (with dropouts or outliers)
-        - multipath_noise (with dropouts or outliers)
-        output_ports:
-        - measurement
+        input_ports: [p_WU, R_WB, p_WT, range_noise, v_WU (with timing), v_WT (with timing),
+                      x_TU_prior (with a beam), R_WB_nav (with a beam), P_TU_prior (with a beam),
+                      fault_uniform (with dropouts or outliers),
+                      multipath_noise (with dropouts or outliers)]
+        output_ports: [measurement]
 
     The inputs are :class:`DualSonar`'s; ``measurement`` holds its outputs end to end in the
     order of :func:`output_layout`. Without timing the output is computed from the inputs at
