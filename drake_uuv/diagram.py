@@ -1,6 +1,6 @@
 """The one builder of the closed loop: every system and logger named, every port wired here."""
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -138,7 +138,7 @@ def make_uuv_diagram(
     *,
     builder: DiagramBuilder | None = None,
     meshcat: Meshcat | None = None,
-    log: bool = True,
+    log: bool | Collection[str] = True,
     systems: Mapping[str, System] | None = None,
 ) -> UuvDiagram:
     """Builds the paper's closed loop from a validated scenario.
@@ -162,8 +162,9 @@ def make_uuv_diagram(
     own, used instead of the scenario's: e.g. ``systems={"estimator": MyEstimator()}`` with
     any ``LeafSystem`` that reads the signals it needs by name and outputs its slot's
     signals. Pass a ``builder`` to add systems of your own before building, ``log=False`` for
-    a diagram without loggers (a picture of the loop itself), and ``meshcat`` to draw the
-    scene live (a :class:`~drake_uuv.visualization.live_visualizer.LiveMeshcatVisualizer`
+    a diagram without loggers (a picture of the loop itself), ``log`` a collection of signal
+    names to log only those (a study's runs log what their metrics read), and ``meshcat`` to
+    draw the scene live (a :class:`~drake_uuv.visualization.live_visualizer.LiveMeshcatVisualizer`
     named ``meshcat_visualizer``). A system that lacks a signal of its slot (named with its
     variant's tag, or ``given <class>`` for one of ``systems``), or reads one nobody
     produces, is refused with a one-line ``ValueError`` naming the system and the port.
@@ -202,7 +203,7 @@ def make_uuv_diagram(
                     "drake_uuv.primitives.declare_random_input)"
                 )
 
-    signals = {signal.name: signal for signal in logged_signals(systems)} if log else {}
+    signals = {signal.name: signal for signal in _chosen_signals(systems, log)}
     loggers = {}
     for signal in signals.values():
         logger = LogVectorOutput(producers[signal.name], builder, t)
@@ -212,6 +213,16 @@ def make_uuv_diagram(
     diagram = builder.Build()
     diagram.set_name("uuv_closed_loop")
     return UuvDiagram(diagram, systems, loggers, signals, noise)
+
+
+def _chosen_signals(systems: dict[str, System], log: bool | Collection[str]) -> list[Signal]:
+    """The logged signals ``log`` asks for: all (True), none (False) or those it names."""
+    if isinstance(log, bool):
+        return logged_signals(systems) if log else []
+    if isinstance(log, str):
+        raise ValueError(f"log: must be True, False or a collection of signal names, got {log!r}")
+    names = set(log)
+    return [signal for signal in logged_signals(systems) if signal.name in names]
 
 
 def _origin(scenario: Scenario, name: str, system: System, given: bool) -> str:

@@ -18,6 +18,29 @@ from drake_uuv.models.ping_geometry import interpolate_attitude
 from drake_uuv.models.tracking_laws import desired_relative_positions
 from drake_uuv.scenario import Scenario
 
+#: The log's signals that a run's metrics and warnings (:func:`run_metrics`,
+#: :func:`drake_uuv.diagnostics.run_warnings`) and a study's per-run arrays (errors, information)
+#: read whatever the scenario: the truth, the estimate, the filter's input, the sonar's baseline
+#: and returns, and a vehicle's or a filter's own signals (:func:`metric_signals`).
+METRIC_SIGNALS = frozenset(
+    {
+        "p_WU", "v_WU", "R_WB", "p_WT", "v_WT", "x_TU_hat", "P_TU", "u1_W", "b_W",
+        "sonar_status", "R_WB_command", "w_WB", "w_WB_command", "saturation_ticks",
+        "estimator_phase",
+    }
+)  # fmt: skip
+
+
+def metric_signals(scenario: Scenario) -> frozenset[str]:
+    """The signals a run of ``scenario`` must log for its metrics and warnings: a run that logs
+    only these (``ClosedLoopSimulation(..., log="metrics")``) has the same metrics.
+    :data:`METRIC_SIGNALS`, and each ping's time and geometry where the bound is the
+    extended one (:func:`bound_errors_on`)."""
+    if bound_errors_on(scenario):
+        return METRIC_SIGNALS | {"ping_time", "p_TS_W"}
+    return METRIC_SIGNALS
+
+
 # A ping time short of a tick by less than this fraction of a step (rounding of k t + τ)
 # belongs to that tick's step: the sonar's own tolerance for its delays.
 _STEP_TOLERANCE = 1e-9

@@ -15,7 +15,7 @@ from pydrake.systems.framework import Context, System
 from drake_uuv.diagnostics import RunWarning, run_warnings
 from drake_uuv.diagram import UuvDiagram, make_uuv_diagram
 from drake_uuv.io import write_json_atomic, write_npz_atomic
-from drake_uuv.metrics import run_metrics
+from drake_uuv.metrics import metric_signals, run_metrics
 from drake_uuv.models.tracking_laws import closed_loop_eigenvalues
 from drake_uuv.monitor import EstimatorHealthMonitor, SimulationFailure
 from drake_uuv.scenario import Scenario
@@ -70,6 +70,11 @@ def read_log(path: Path) -> dict[str, np.ndarray]:
         return {key: data[key] for key in data.files}
 
 
+#: What a run logs, by ``ClosedLoopSimulation``'s ``log``: every logged signal (``log.npz``),
+#: or only those its metrics read (a study's runs).
+LOGS = ("full", "metrics")
+
+
 class ClosedLoopSimulation:
     """A built closed-loop diagram that runs any number of seeded runs.
 
@@ -85,7 +90,10 @@ class ClosedLoopSimulation:
     :class:`~drake_uuv.visualization.live_visualizer.LiveMeshcatVisualizer`).
 
     ``systems`` replaces systems of the loop with your own, by name (see
-    :func:`~drake_uuv.diagram.make_uuv_diagram`). A plant with continuous state sets up the
+    :func:`~drake_uuv.diagram.make_uuv_diagram`). ``log="full"`` (the default) logs every
+    signal of ``log.npz``; ``log="metrics"`` only those the metrics, the warnings and a
+    study read (:func:`~drake_uuv.metrics.metric_signals`): the same metrics, with the outputs
+    nobody else reads never computed. A plant with continuous state sets up the
     integrator (its ``configure_simulator``). Besides :func:`~drake_uuv.metrics.run_metrics`,
     a run's metrics hold ``tracking_spectral_radius``: the largest |eigenvalue| of the
     tracking law's closed loop ``A − B K`` on the relative double integrator (< 1: the error
@@ -100,9 +108,13 @@ class ClosedLoopSimulation:
         *,
         meshcat: Meshcat | None = None,
         systems: Mapping[str, System] | None = None,
+        log: str = "full",
     ) -> None:
+        if log not in LOGS:
+            raise ValueError(f"log: must be one of {', '.join(LOGS)}, got {log!r}")
         self.scenario = scenario
-        self.built = make_uuv_diagram(scenario, meshcat=meshcat, systems=systems)
+        logged = True if log == "full" else metric_signals(scenario)
+        self.built = make_uuv_diagram(scenario, meshcat=meshcat, systems=systems, log=logged)
         self.diagram = self.built.diagram
         self.monitor = EstimatorHealthMonitor(self.built.systems["estimator"], scenario.time_step)
         gain = getattr(self.built.systems["tracking_controller"], "gain", None)

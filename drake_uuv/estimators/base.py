@@ -124,6 +124,8 @@ class RelativeStateEstimator(LeafSystem):
                 setting.navigation_errors, setting.ping_schedule, setting.sound_speed_error,
                 navigated,
             )  # fmt: skip
+        # The model is frozen: whether it adds anything is known once, not asked every step.
+        self._model_active = self._error_model.active
         self._window = None
         if not self._error_model.schedule.immediate:
             self._window = PingWindow(
@@ -281,13 +283,13 @@ class RelativeStateEstimator(LeafSystem):
             _, current = self._window.steps(context, samples, status)
             samples = np.where(current[:, np.newaxis], samples, np.nan)
             status = np.where(current, status, NO_ARRIVAL)
-        valid = (np.asarray(status) == VALID) & np.all(np.isfinite(samples), axis=1)
+        valid = (status == VALID) & np.isfinite(samples).all(axis=1)
         R_WB = self._attitude_port.Eval(context).reshape(3, 3)
         q_s = R_WB @ self._b
-        z = samples.mean(axis=1)
-        model = self._error_model
-        if not model.active:
+        z = samples.sum(axis=1) / self._f  # samples.mean(axis=1)'s arithmetic, without its wrapper
+        if not self._model_active:
             return Ranges(samples, z, valid, status, q_s)
+        model = self._error_model
         return Ranges(
             samples, z, valid, status, q_s, model.attitude_covariance(R_WB), model.range_variance(z)
         )
@@ -305,14 +307,14 @@ class RelativeStateEstimator(LeafSystem):
         extra = self.navigation_process_noise(context)
         Q = self._Q if extra is None else self._Q + extra
         return predict(
-            x - motion.offset(context), P, motion.acceleration(context), self._A, self._B, Q
+            motion.stored(context, x), P, motion.acceleration(context), self._A, self._B, Q
         )
 
     def navigation_process_noise(self, context: Context) -> np.ndarray | None:
         """What the modelled navigation errors add to the step's Q from this tick (6×6; None
         when nothing): :meth:`~drake_uuv.estimators.error_model.ErrorModel.process_noise` at
         this tick's commanded acceleration, navigated attitude and navigated velocity."""
-        if not self._error_model.active:
+        if not self._model_active:
             return None
         motion = self.vehicle_motion
         R_WB_nav = self._attitude_port.Eval(context).reshape(3, 3)
@@ -359,7 +361,10 @@ class RelativeStateEstimator(LeafSystem):
         estimate = self.filtered_estimate(context)
         if estimate is None:
             estimate = self._filtered_by_update(context)
-        estimate.floor = self._error_model.floor(estimate.x, self._velocity_covariance(context))
+        if self._model_active:
+            estimate.floor = self._error_model.floor(estimate.x, self._velocity_covariance(context))
+        else:
+            estimate.floor = None
         value.set_value(estimate)
 
     def _velocity_covariance(self, context: Context) -> np.ndarray | None:

@@ -15,10 +15,10 @@ target. An estimator predicts it one of two ways (the scenario's
   whatever it did of its commands. The stored prediction is ``−X̄(k+1|k)``, the relative
   state less the vehicle's state; the prior of step k adds ``X(k)``.
 
-Either way a prediction is ``A (x − offset) + B acceleration`` in the stored frame, and a
-prior is ``stored + offset``: :meth:`offset` is ``X(k)`` (navigation) or zero, and
-:meth:`acceleration` is ``a_W(k)`` (commanded) or zero. The particle phase moves its
-particles with the same two numbers.
+Either way a prediction is ``A (x − offset) + B acceleration`` in the stored frame (``x −
+offset`` is :meth:`stored`), and a prior is ``stored + offset``: :meth:`offset` is ``X(k)``
+(navigation) or zero, and :meth:`acceleration` is ``a_W(k)`` (commanded) or zero. The
+particle phase moves its particles with the same two numbers.
 """
 
 import numpy as np
@@ -50,6 +50,10 @@ class CommandedMotion:
     def prior(self, context: Context, stored: np.ndarray) -> np.ndarray:
         return stored
 
+    def stored(self, context: Context, x: np.ndarray) -> np.ndarray:
+        """``x − offset``: the relative state itself (``x − 0`` is ``x`` to the bit)."""
+        return x
+
 
 class NavigatedMotion:
     """The prediction of the target alone, the vehicle's state from its navigation; declares
@@ -74,6 +78,10 @@ class NavigatedMotion:
 
     def prior(self, context: Context, stored: np.ndarray) -> np.ndarray:
         return stored + self.offset(context)
+
+    def stored(self, context: Context, x: np.ndarray) -> np.ndarray:
+        """``x − offset``: a relative estimate in the frame the state stores."""
+        return x - self.offset(context)
 
 
 #: ``estimator.vehicle_motion`` → its strategy.

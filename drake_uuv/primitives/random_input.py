@@ -25,3 +25,9 @@ def declare_random_input(
 def random_inputs(system: object) -> dict[str, RandomDistribution]:
     """The random input ports a system declared with :func:`declare_random_input`."""
     return dict(getattr(system, RANDOM_INPUTS, {}))
+
+
+def export_random_inputs(diagram: object, system: object) -> None:
+    """Records on ``diagram`` the random input ports of ``system`` it exports under the same
+    names (a system of the loop that is a diagram of smaller ones)."""
+    setattr(diagram, RANDOM_INPUTS, random_inputs(system))

@@ -2,7 +2,6 @@
 
 import copy
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,13 +10,16 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import (
     BasicVector,
     Context,
+    Diagram,
+    DiagramBuilder,
     DiscreteValues,
     LeafSystem,
     ValueProducer,
 )
+from pydrake.systems.primitives import Demultiplexer
 
 from drake_uuv.models.measurement import NO_ARRIVAL, VALID, range_difference_noise
-from drake_uuv.primitives.random_input import declare_random_input
+from drake_uuv.primitives.random_input import declare_random_input, export_random_inputs
 from drake_uuv.primitives.setting import time_step_field
 from drake_uuv.scenario.schema import SonarConfig
 from drake_uuv.sensors.sonar_faults import SonarFaults, geometry_status, random_faults
@@ -52,7 +54,16 @@ class _Measurement:
     tick: TickGeometry | None  # this tick's geometry, with timing (the next tick's previous)
 
 
-class DualSonar(LeafSystem):
+def output_layout(samples_per_step: int) -> tuple[tuple[str, int], ...]:
+    """The sonar's output ports and their sizes, in the order of the packed ``measurement``."""
+    f = samples_per_step
+    return (
+        ("ranges", 2), ("range_samples", 2 * f), ("Y", 1), ("m", 1), ("Gamma", 1), ("b_W", 3),
+        ("sonar_status", 2), ("multipath", 2), ("ping_time", 2), ("p_TS_W", 6),
+    )  # fmt: skip
+
+
+class DualSonar(Diagram):
     """Ranges from two sonars to the target, and the paper's linearised measurement.
 
     Sonar s1 sits at ``p_WU + ½ q_s`` and s2 at ``p_WU − ½ q_s``, with the world baseline
@@ -73,6 +84,7 @@ class DualSonar(LeafSystem):
         - v_WU (with timing)
         - v_WT (with timing)
         - x_TU_prior (with a beam)
+        - R_WB_nav (with a beam)
         - P_TU_prior (with a beam)
         - fault_uniform (with dropouts or outliers)
         - multipath_noise (with dropouts or outliers)
@@ -140,6 +152,56 @@ class DualSonar(LeafSystem):
     ``m`` and ``Γ`` follow (:data:`~drake_uuv.scenario.NOISE_MODELS`): the estimator's, which
     the builder passes from the scenario's estimator section; ``time_step`` is the period t
     [s] of the loop's ticks.
+
+    Inside, a :class:`SonarMeasurement` (``measurement``) computes every output of a tick in
+    one call, and a Drake ``Demultiplexer`` (``outputs``) splits it into the ports: one Python
+    call per tick however many of them are read.
+    """
+
+    def __init__(self, config: SonarConfig, *, noise_model: str, time_step: float) -> None:
+        super().__init__()
+        builder = DiagramBuilder()
+        model = builder.AddNamedSystem(
+            "measurement", SonarMeasurement(config, noise_model=noise_model, time_step=time_step)
+        )
+        layout = output_layout(config.samples_per_step)
+        split = builder.AddNamedSystem("outputs", Demultiplexer([size for _, size in layout]))
+        builder.Connect(model.get_output_port(), split.get_input_port())
+        for i in range(model.num_input_ports()):
+            port = model.get_input_port(i)
+            builder.ExportInput(port, port.get_name())
+        for i, (name, _) in enumerate(layout):
+            builder.ExportOutput(split.get_output_port(i), name)
+        builder.BuildInto(self)
+        export_random_inputs(self, model)
+        self._model = model
+
+    @property
+    def faults(self) -> SonarFaults:
+        return self._model.faults
+
+    @property
+    def delays(self) -> tuple[int, int]:
+        """``(d_1, d_2)``: the ticks from each sonar's step to the arrival of its range."""
+        return self._model.delays
+
+
+class SonarMeasurement(LeafSystem):
+    """The dual sonar's measurement of a tick, every output of :class:`DualSonar` in one
+    vector (the model; :class:`DualSonar` is the system of the loop).
+
+    .. pydrake_system::
+
+        name: SonarMeasurement
+        input_ports: [p_WU, R_WB, p_WT, range_noise, v_WU (with timing), v_WT (with timing),
+                      x_TU_prior (with a beam), R_WB_nav (with a beam), P_TU_prior (with a beam),
+                      fault_uniform (with dropouts or outliers),
+                      multipath_noise (with dropouts or outliers)]
+        output_ports: [measurement]
+
+    The inputs are :class:`DualSonar`'s; ``measurement`` holds its outputs end to end in the
+    order of :func:`output_layout`. Without timing the output is computed from the inputs at
+    once; with timing, from a cache entry the update shares.
     """
 
     def __init__(self, config: SonarConfig, *, noise_model: str, time_step: float) -> None:
@@ -183,7 +245,7 @@ class DualSonar(LeafSystem):
                 self, "multipath_noise", 2, RandomDistribution.kExponential
             )
         self._declare_timing()
-        # One measurement per context, shared by every output port and the update.
+        # With timing, the output and the update share one measurement per context.
         nan2 = np.full(2, math.nan)
         empty = Pings(np.zeros((2, self._f)), nan2, nan2, nan2, np.zeros((2, 3)))
         self._measurement = self.DeclareCacheEntry(
@@ -196,20 +258,18 @@ class DualSonar(LeafSystem):
             ),
             {self.all_sources_ticket()},
         )
-        depends = {self._measurement.ticket()}
-        for name, size, calc in (
-            ("ranges", 2, self._arrival_output(lambda a: a.samples[:, 0])),
-            ("range_samples", 2 * self._f, self._arrival_output(lambda a: a.samples.ravel())),
-            ("Y", 1, self._calc_Y),
-            ("m", 1, self._calc_m),
-            ("Gamma", 1, self._calc_Gamma),
-            ("b_W", 3, self._calc_b_W),
-            ("sonar_status", 2, self._arrival_output(lambda a: a.status)),
-            ("multipath", 2, self._arrival_output(lambda a: a.multipath)),
-            ("ping_time", 2, self._arrival_output(lambda a: a.time)),
-            ("p_TS_W", 6, self._arrival_output(lambda a: a.p_TS_W.ravel())),
-        ):
-            self.DeclareVectorOutputPort(name, size, calc, depends)
+        size = sum(n for _, n in output_layout(self._f))
+        if self._timed:  # the update reads the same measurement
+            self.DeclareVectorOutputPort(
+                "measurement", size, self._calc_timed_output, {self._measurement.ticket()}
+            )
+        else:
+            # Without timing, faults or a beam every ping is at the tick and every range
+            # returns: the output straight from the inputs (the same arithmetic, no pings).
+            plain = self._prior_port is None and self._faults.max_range is None
+            plain = plain and not self._faults.random_faults
+            calc = self._calc_plain_output if plain else self._calc_output
+            self.DeclareVectorOutputPort("measurement", size, calc, {self.all_sources_ticket()})
 
     def _declare_timing(self) -> None:
         """With timing: the velocity inputs, the previous tick's geometry, one FIFO per sonar
@@ -237,6 +297,51 @@ class DualSonar(LeafSystem):
         return self._delays
 
     def _calc_measurement(self, context: Context, value: AbstractValue) -> None:
+        value.set_value(self._measurement_at(context))
+
+    def _calc_output(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._packed(self._measurement_at(context)))
+
+    def _calc_timed_output(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._packed(self._measurement.Eval(context)))
+
+    def _calc_plain_output(self, context: Context, output: BasicVector) -> None:
+        """:meth:`_calc_output` of a sonar without timing, faults or a beam: both pings at
+        the tick (:func:`tick_ping`'s ``q ± ½ q_s``), both ranges returned, status VALID."""
+        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
+        q_s = R_WB @ self._b
+        q = self._uuv_port.Eval(context) - self._target_port.Eval(context)
+        half = 0.5 * q_s
+        p_TS_W = (q + half, q + -half)
+        true_ranges = np.array([math.sqrt(float(p @ p)) for p in p_TS_W])
+        measured = true_ranges if self._scale == 1.0 else self._scale * true_ranges
+        noise = self._noise_port.Eval(context).reshape(2, self._f)
+        samples = measured[:, np.newaxis] + self._sigma * noise
+        Y, m, gamma = self._paper_measurement(samples)
+        now = context.get_time()
+        output.set_value(
+            np.concatenate(
+                (
+                    samples[:, 0], samples.ravel(), (Y, m, gamma), q_s,
+                    (0.0, 0.0, 0.0, 0.0, now, now), p_TS_W[0], p_TS_W[1],
+                )
+            )
+        )  # fmt: skip
+
+    @staticmethod
+    def _packed(measurement: _Measurement) -> np.ndarray:
+        """The outputs of :func:`output_layout`, end to end."""
+        a = measurement.arrivals
+        return np.concatenate(
+            (
+                a.samples[:, 0], a.samples.ravel(),
+                (measurement.Y, measurement.m, measurement.Gamma), measurement.b_W,
+                a.status, a.multipath, a.time, a.p_TS_W.ravel(),
+            )
+        )  # fmt: skip
+
+    def _measurement_at(self, context: Context) -> _Measurement:
+        """The tick's measurement: the arriving pings, Y, m, Γ, the baseline, the geometry."""
         p_WU = self._uuv_port.Eval(context)
         p_WT = self._target_port.Eval(context)
         R_WB = self._attitude_port.Eval(context).reshape(3, 3)
@@ -274,7 +379,7 @@ class DualSonar(LeafSystem):
             for i, index in self._fifo_index.items():
                 arrivals.set_entry(i, context.get_discrete_state(index).value()[:n])
         Y, m, gamma = self._paper_measurement(arrivals.samples)
-        value.set_value(_Measurement(arrivals, Y, m, gamma, q_s, measured, tick))
+        return _Measurement(arrivals, Y, m, gamma, q_s, measured, tick)
 
     def _pointing(self, context: Context) -> tuple[np.ndarray, float]:
         """The estimator's predicted ``q`` and the radius the pan-tilts scan (NaN without a
@@ -344,25 +449,3 @@ class DualSonar(LeafSystem):
         for i, index in self._fifo_index.items():
             fifo = context.get_discrete_state(index).value()
             discrete_state.set_value(index, fifo_push(fifo, measurement.measured.entry(i)))
-
-    def _arrival_output(
-        self, field: Callable[[Pings], np.ndarray]
-    ) -> Callable[[Context, BasicVector], None]:
-        """An output port's calc: ``field`` of the arriving pings."""
-
-        def calc(context: Context, output: BasicVector) -> None:
-            output.set_value(field(self._measurement.Eval(context).arrivals))
-
-        return calc
-
-    def _calc_Y(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._measurement.Eval(context).Y)
-
-    def _calc_m(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._measurement.Eval(context).m)
-
-    def _calc_Gamma(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._measurement.Eval(context).Gamma)
-
-    def _calc_b_W(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._measurement.Eval(context).b_W)

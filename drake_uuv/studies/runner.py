@@ -54,7 +54,7 @@ def cached_simulation(scenario: Scenario) -> ClosedLoopSimulation:
     if key not in cache:
         if len(cache) >= _CACHE_SIZE:
             cache.clear()
-        cache[key] = ClosedLoopSimulation(scenario)
+        cache[key] = ClosedLoopSimulation(scenario, log="metrics")
     return cache[key]
 
 

@@ -146,3 +146,41 @@ def test_read_log_reads_a_saved_run(paper_run, tmp_path) -> None:
     for key in LOG_KEYS:
         np.testing.assert_array_equal(log[key], paper_run.log[key])
         assert log[key].dtype == paper_run.log[key].dtype
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        [],
+        [
+            "sonar.ping_offsets=[0.1, 0.3]",
+            "sonar.latency=0.6",
+            "estimator.vehicle_motion=navigation",
+        ],
+    ],
+    ids=["paper", "timed-extended-bound"],
+)
+def test_a_run_logging_only_the_metric_signals_has_the_same_metrics(overrides) -> None:
+    scenario = load_scenario("paper", [*overrides, "steps=120", "steady_state_start=40"])
+    full = ClosedLoopSimulation(scenario).run()
+    lean = ClosedLoopSimulation(scenario, log="metrics").run()
+    assert set(lean.log) < set(full.log) and "u1_B" not in lean.log
+    drop = {"wall_time_s"}
+    assert {k: v for k, v in lean.metrics.items() if k not in drop} == {
+        k: v for k, v in full.metrics.items() if k not in drop
+    }
+    assert lean.warnings == full.warnings
+    for key in lean.log:
+        assert np.array_equal(lean.log[key], full.log[key], equal_nan=True), key
+
+
+def test_a_bad_log_choice_is_named(paper) -> None:
+    with pytest.raises(ValueError, match=r"^log: must be one of full, metrics, got 'some'$"):
+        ClosedLoopSimulation(paper, log="some")
+    with pytest.raises(ValueError, match=r"^log: must be True, False or a collection .* 'p_WU'$"):
+        make_uuv_diagram(paper, log="p_WU")
+
+
+def test_a_diagram_logs_the_signals_it_is_given(paper) -> None:
+    built = make_uuv_diagram(paper, log=["p_WU", "x_TU_hat", "u1_B"])
+    assert set(built.loggers) == {"p_WU", "x_TU_hat", "u1_B"}

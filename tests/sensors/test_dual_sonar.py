@@ -1,5 +1,7 @@
 """The dual sonar alone: ports, noise-free geometry, noise scaling, the Y-noise moments."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -101,3 +103,27 @@ def test_m_and_gamma_follow_the_given_noise_model() -> None:
     assert m == eta.sum()
     with pytest.raises(ValueError, match=r"noise_model: must be derived or paper_printed"):
         sonar_of(noise_model="exact")
+
+
+@pytest.mark.parametrize(
+    ("samples_per_step", "noise_model", "sound_speed_error"),
+    [(1, "derived", 0.0), (3, "derived", 0.02), (2, "paper_printed", -0.01)],
+)
+def test_a_sonar_without_faults_gives_the_faulty_path_s_outputs_to_the_bit(
+    samples_per_step: int, noise_model: str, sound_speed_error: float
+) -> None:
+    """The plain sonar's direct output against the pings' path, which a range limit no
+    target reaches switches on: the same numbers, every port."""
+    config = SonarConfig(
+        b.tolist(), eta.tolist(), samples_per_step, sound_speed_error=sound_speed_error
+    )
+    limited = dataclasses.replace(config, max_range=1e9)
+    noise = np.random.default_rng(3).standard_normal(2 * samples_per_step)
+    plain = DualSonar(config, noise_model=noise_model, time_step=T)
+    pinged = DualSonar(limited, noise_model=noise_model, time_step=T)
+    a, c = context_for(plain, noise), context_for(pinged, noise)
+    a.SetTime(2.5), c.SetTime(2.5)
+    for i in range(plain.num_output_ports()):
+        x, y = plain.get_output_port(i).Eval(a), pinged.get_output_port(i).Eval(c)
+        assert np.array_equal(x, y), plain.get_output_port(i).get_name()
+    assert_allclose(plain.GetOutputPort("ping_time").Eval(a), [2.5, 2.5])
