@@ -1,4 +1,4 @@
-"""Where a paper run's time goes: the figures behind benchmarks/PROFILE_loop.md.
+"""Where a paper run's time goes: the figures behind benchmarks/PROFILE.md.
 
     python benchmarks/profile_loop.py systems    # self time per system and callback [us/step]
     python benchmarks/profile_loop.py skeleton   # the framework alone: the loop's shape, no math

@@ -193,7 +193,7 @@ class HoveringAuv:
     # every metric by at most 6e-4 of its value; the run costs 3.7 paper (kinematic) runs.
     # "runge_kutta5": Drake's error-controlled RK5 on the continuous vehicle (5 times slower),
     # the reference; its outputs follow the motion between outer ticks. See
-    # hovering_auv.configure_simulator and benchmarks/PROFILE_vehicle.md.
+    # hovering_auv.configure_simulator and benchmarks/PROFILE.md.
     integrator: str = "runge_kutta3"
     # Target accuracy of Drake's error-controlled RK5 (integrator "runge_kutta5" only).
     integrator_accuracy: float = 1e-6
