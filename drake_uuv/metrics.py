@@ -64,11 +64,20 @@ def errors(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, np.ndarr
         - desired_relative_positions(
             log["R_WB"], tracking.desired_relative_position, tracking.reference_frame
         ),
-        "nees": np.einsum(
-            "ki,ki->k", e, np.linalg.solve(log["P_TU"], e[:, :, np.newaxis])[:, :, 0]
-        ),
+        "nees": _nees(e, log["P_TU"]),
         "relative_velocity": velocity,
     }
+
+
+def _nees(e: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """``eᵀ P⁻¹ e`` per step; ``inf`` where ``P`` is not finite and positive definite (a
+    covariance that lost definiteness claims no consistent error: without this its NEES could
+    come out negative)."""
+    nees = np.full(len(e), np.inf)
+    ok = np.isfinite(P).all(axis=(1, 2))
+    ok[ok] = np.linalg.eigvalsh(P[ok])[:, 0] > 0.0
+    nees[ok] = np.einsum("ki,ki->k", e[ok], np.linalg.solve(P[ok], e[ok, :, np.newaxis])[:, :, 0])
+    return nees
 
 
 def run_information(log: dict[str, np.ndarray], scenario: Scenario) -> np.ndarray:

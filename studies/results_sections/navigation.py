@@ -203,8 +203,11 @@ sonars, the metrics and the figures. The sonars ping at their own offsets within
 and every range is scaled by (1 + `sonar.sound_speed_error`).
 
 Every estimator models these errors by default (`estimator.error_model: modelled`): attitude
-noise as range noise, DVL noise as process noise, each range at its own ping time with late
-ranges taken when they arrive, the heading bias and the sound-speed scale as floors of the
+noise as range noise; as process noise, the commanded acceleration turned by the attitude's
+error (a filter that predicts with the commands), or the navigated velocity's error, the DVL's
+noise and bias and the attitude noise turning the velocity (a filter that predicts with the
+navigated motion; the particle filter draws it per particle); each range at its own ping time
+with late ranges taken when they arrive; the heading bias and the sound-speed scale as floors of the
 published covariance (a heading bias rotates the whole relative frame, which ranges cannot
 see). `error_model: ideal` believes navigation and timing perfect: the rows marked *ideal*
 show what ignoring them costs. *bound*: the per-run posterior Cramér–Rao bound extended by the

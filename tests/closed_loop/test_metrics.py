@@ -11,6 +11,7 @@ from drake_uuv.metrics import (
     bound_covariances,
     bound_errors_on,
     bound_metrics,
+    errors,
     extended_bound,
     ping_arrivals,
 )
@@ -284,3 +285,21 @@ def test_sonar_timing_without_the_sonars_keys_is_refused() -> None:
     del log["p_TS_W"]
     with pytest.raises(ValueError, match=r"log: has no 'ping_time' and 'p_TS_W'.* latency 0.6"):
         bound_metrics(log, scenario)
+
+
+def test_the_nees_of_a_covariance_that_is_not_positive_definite_is_infinite() -> None:
+    """``eᵀ P⁻¹ e`` where P is positive definite; where it lost definiteness (an eigenvalue
+    below zero, or a NaN) the NEES is ``inf``, never a negative number."""
+    scenario = _scenario()
+    log = _synthetic_log(scenario)
+    rng = np.random.default_rng(3)
+    L = rng.normal(size=(STEPS, 6, 6))
+    log["P_TU"] = L @ np.swapaxes(L, 1, 2) + 0.1 * np.eye(6)
+    log["x_TU_hat"] = rng.normal(size=(STEPS, 6))
+    log["P_TU"][3] = np.diag([1.0, 1.0, 1.0, 1.0, 1.0, -1e-3])
+    log["P_TU"][5, 0, 0] = np.nan
+    nees = errors(log, scenario)["nees"]
+    e = np.concatenate([log["p_WU"] - log["p_WT"], log["v_WU"] - log["v_WT"]], 1) - log["x_TU_hat"]
+    for k in range(STEPS):
+        expected = math.inf if k in (3, 5) else e[k] @ np.linalg.inv(log["P_TU"][k]) @ e[k]
+        assert nees[k] == pytest.approx(expected, rel=1e-9)
