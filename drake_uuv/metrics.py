@@ -70,12 +70,14 @@ def errors(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, np.ndarr
 
 
 def _nees(e: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """``eᵀ P⁻¹ e`` per step; ``inf`` where ``P`` is not finite and positive definite (a
-    covariance that lost definiteness claims no consistent error: without this its NEES could
-    come out negative)."""
+    """``eᵀ P⁻¹ e`` per step; ``inf`` where ``P`` is not finite and numerically positive
+    definite (its smallest eigenvalue above ``6 ε`` times its largest): a covariance that lost
+    definiteness, or so ill-conditioned that ``P⁻¹`` is rounding, claims no consistent error
+    (without this a diverged filter's NEES could come out negative)."""
     nees = np.full(len(e), np.inf)
     ok = np.isfinite(P).all(axis=(1, 2))
-    ok[ok] = np.linalg.eigvalsh(P[ok])[:, 0] > 0.0
+    values = np.linalg.eigvalsh(P[ok])
+    ok[ok] = values[:, 0] > 6 * np.finfo(float).eps * values[:, -1]
     nees[ok] = np.einsum("ki,ki->k", e[ok], np.linalg.solve(P[ok], e[ok, :, np.newaxis])[:, :, 0])
     return nees
 

@@ -253,4 +253,25 @@ diverged. The error-free row has one model (`=` where it would repeat).
 ![mean NEES per error source](figures/{FIGURE}.png)
 
 {tables}
+
+**What the tables show.** Under the LQR law (commands of at most 3 m/s²) every estimator with
+its error model survives every source alone and all of them together; the particle filter
+stays consistent and within a few per cent of the extended bound throughout. The EKF is
+overconfident in this loop whatever the navigation (its NEES is high in the error-free row
+too), so the navigation is not what it misses, and its first-order linearisation of the
+ranges is the likely cause; the UKF and the particle filter with the same model are
+consistent. Ignoring the timing
+(`ideal` with late pings or late ranges) is what diverges there: a range taken at the tick
+when it was measured a quarter of a second earlier is off by the relative motion meanwhile.
+
+Under the paper's tracking law, AHRS noise and a ping offset diverge runs of every estimator,
+with its error model or without, as the paper's assumption of a perfect attitude and a single
+ping instant hides. The law's commands are hundreds of m/s² at the start: an attitude error of
+half a degree turns them into metres per second squared of unmodelled motion, and sonars
+pinging apart see the vehicle displaced by metres between their pings. The error model widens
+the filter by what it knows of this (the commanded acceleration's error as process noise), but
+cannot give back the information the motion destroyed. The compass bias leaves the filters
+overconfident under this law (NEES above the band with the floor added): the floor, computed
+at the estimate, does not cover the bias's effect through the law's large relative motions;
+that is left to investigate.
 """

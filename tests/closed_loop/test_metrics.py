@@ -289,7 +289,8 @@ def test_sonar_timing_without_the_sonars_keys_is_refused() -> None:
 
 def test_the_nees_of_a_covariance_that_is_not_positive_definite_is_infinite() -> None:
     """``eᵀ P⁻¹ e`` where P is positive definite; where it lost definiteness (an eigenvalue
-    below zero, or a NaN) the NEES is ``inf``, never a negative number."""
+    below zero, a NaN, or a condition number past the rounding) the NEES is ``inf``, never a
+    negative number."""
     scenario = _scenario()
     log = _synthetic_log(scenario)
     rng = np.random.default_rng(3)
@@ -298,8 +299,9 @@ def test_the_nees_of_a_covariance_that_is_not_positive_definite_is_infinite() ->
     log["x_TU_hat"] = rng.normal(size=(STEPS, 6))
     log["P_TU"][3] = np.diag([1.0, 1.0, 1.0, 1.0, 1.0, -1e-3])
     log["P_TU"][5, 0, 0] = np.nan
+    log["P_TU"][7] = np.diag([1e17, 1.0, 1.0, 1.0, 1.0, 1.0])  # P⁻¹ below rounding
     nees = errors(log, scenario)["nees"]
     e = np.concatenate([log["p_WU"] - log["p_WT"], log["v_WU"] - log["v_WT"]], 1) - log["x_TU_hat"]
     for k in range(STEPS):
-        expected = math.inf if k in (3, 5) else e[k] @ np.linalg.inv(log["P_TU"][k]) @ e[k]
+        expected = math.inf if k in (3, 5, 7) else e[k] @ np.linalg.inv(log["P_TU"][k]) @ e[k]
         assert nees[k] == pytest.approx(expected, rel=1e-9)
