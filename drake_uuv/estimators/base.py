@@ -66,6 +66,9 @@ class RelativeStateEstimator(LeafSystem):
       estimate; :meth:`predicted` and :meth:`write_prediction`: a prediction in the frame the
       state stores (see :mod:`~drake_uuv.estimators.vehicle_motion`) and writing it.
     - :attr:`vehicle_motion`: the strategy's ``offset`` and ``acceleration`` of this step.
+    - :meth:`navigation_process_noise`: what the modelled navigation errors add to this
+      step's Q (:meth:`predicted` adds it; a sampling variant draws it, as the particle cloud
+      does).
     - :meth:`depends_on_measurement`: the tickets of everything the step's ranges and prior
       depend on, for a cache entry of your own.
 
