@@ -242,8 +242,8 @@ position RMSE is at most {BOUND_LIMIT:g}× the extended bound:
 {chr(10).join(row for row, _ in verdicts)}
 
 In this loop the EKF and the UKF lose runs with their error model and without it, where the
-paper's KF and the particle filter lose none; the cause (the Gaussian raw-range filters' first
-steps after the hand-over in the flyable loop) is not yet established.
+paper's KF and the particle filter lose none; why the Gaussian raw-range filters fail in the
+flyable loop is not yet established.
 
 ### Each error source alone
 
