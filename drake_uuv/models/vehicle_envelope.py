@@ -65,33 +65,16 @@ def plan_max_tilt(
 
 
 def largest_acceleration(
-    model: MarineVehicleModel,
-    allocator: ThrustAllocator,
-    *,
-    speed: float,
-    angular_rate: float,
-    rate_step: float,
-    tilt: float,
-    attitude_bandwidth: float,
-    attitude_damping_ratio: float,
-    upper: float = 10.0,
+    model: MarineVehicleModel, allocator: ThrustAllocator, *, upper: float = 10.0, **demands: float
 ) -> float:
     """The largest acceleration [m/s²] whose :func:`utilisation_budget` total, with the other
-    demands, is at most 1 (bisection: the total grows with the acceleration); 0 if the other
+    ``demands`` (its keyword arguments but ``acceleration``: ``speed``, ``angular_rate``,
+    ``rate_step``, ``tilt``, ``attitude_bandwidth``, ``attitude_damping_ratio``), is at most 1
+    (bisection on ``[0, upper]``: the total grows with the acceleration); 0 if the other
     demands alone exceed the thrust."""
 
     def total(acceleration: float) -> float:
-        return utilisation_budget(
-            model,
-            allocator,
-            acceleration=acceleration,
-            speed=speed,
-            angular_rate=angular_rate,
-            rate_step=rate_step,
-            tilt=tilt,
-            attitude_bandwidth=attitude_bandwidth,
-            attitude_damping_ratio=attitude_damping_ratio,
-        )["total"]
+        return utilisation_budget(model, allocator, acceleration=acceleration, **demands)["total"]
 
     if total(0.0) > 1.0:
         return 0.0
