@@ -11,6 +11,7 @@ comes from these runs.
 """
 
 import math
+import shlex
 from pathlib import Path
 from typing import Any
 
@@ -317,7 +318,7 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
         v0 @ v0
         + (paper.steps - 1) * paper.time_step**2 * np.trace(paper.target.acceleration_covariance)
     )
-    loop = " ".join(f"`--set {o}`" for o in VEHICLE_LOOP)
+    loop = " ".join(f"`--set {shlex.quote(o)}`" for o in VEHICLE_LOOP)
     main_command = f"drake-uuv compare --group attitude --runs {runs}"
     vehicle_command = f"drake-uuv compare --group attitude_vehicle --runs {vehicle_runs}"
 
@@ -374,7 +375,7 @@ Paired comparisons (the ratio is candidate / baseline of the pooled position RMS
 {verdicts[1]}
 ### On the hovering UUV
 
-The same comparison on the 8-thruster vehicle (`--set plant=!HoveringAuv`) at one budget, taken
+The same comparison on the 8-thruster vehicle (`--set plant=HoveringAuv`) at one budget, taken
 from the rate the vehicle follows without saturating: {VEHICLE_ANGULAR_RATE:g} rad/s, i.e.
 {vbudget:g} rad per step (Algorithm 2 with `attitude.max_angular_rate={VEHICLE_ANGULAR_RATE:g}`
 against the planner with `max_angle_per_step: {vbudget:g}`), paper's KF, {vehicle_runs} runs

@@ -190,7 +190,7 @@ def peer(work: Path) -> dict[str, str] | None:
     """The peer's printed figures per regime of :data:`PEER_LOGS` (None without Stone Soup).
 
     Writes each seed's ``log.npz`` as ``drake-uuv run --seed S --set <regime's overrides>
-    --set estimator=!ParticleFilter`` would, then runs ``benchmarks/peer_filters.py`` on them;
+    --set estimator=ParticleFilter`` would, then runs ``benchmarks/peer_filters.py`` on them;
     its output is kept in ``work/peer/<regime>.txt``.
     """
     if importlib.util.find_spec("stonesoup") is None:

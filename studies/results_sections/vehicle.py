@@ -11,6 +11,7 @@ returns the section's Markdown with every number taken from those runs and from
 """
 
 import math
+import shlex
 from pathlib import Path
 from typing import Any
 
@@ -454,7 +455,7 @@ allows ω ≤ v_s/|q\\*| = {f.speed_budget / q_star:.3f} rad/s,
 {f.speed_budget / q_star / f.sweep_rate:.0%} of the sweep the excitation needs. The excitation
 comes from the baseline b_W turning, not from q\\*, so the feasible configuration fixes q\\* in
 the **world** (`tracking.reference_frame=world`), where turning costs no speed:
-`{" ".join(f"--set {o}" for o in f.overrides())}`.
+`{" ".join(f"--set {shlex.quote(o)}" for o in f.overrides())}`.
 
 **What no configuration covers: the paper's target.** Its velocity is a random walk, RMS speed
 √(|v̄(0)|² + k t² tr W) = {speed_start:.2f} m/s at k = {start} and {speed_end:.2f} m/s at
