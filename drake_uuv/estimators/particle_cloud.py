@@ -214,18 +214,25 @@ class ParticleCloud:
         value = context.get_discrete_state(self._jitter_index).get_value()
         return value.reshape(D, 6, self._parameters.count)
 
-    def _draw_jitter(
-        self, context: Context, rng: np.random.Generator, out: np.ndarray | None = None
-    ) -> np.ndarray | None:
-        """Per particle, a draw of ``N(0, Q_nav)``: what the modelled navigation errors add
-        over the step from this tick (the Gaussian filters add ``Q_nav`` to their Q). None
-        when they add nothing."""
+    def _jitter_root(self, context: Context) -> np.ndarray | None:
+        """A root of ``Q_nav``, what the modelled navigation errors add over the step from this
+        tick (the Gaussian filters add it to their Q); None when they add nothing."""
         Q = self._host.navigation_process_noise(context)
         if Q is None:
             return None
         # Q_nav has rank 3 (an acceleration's, or the position's walk): a symmetric root.
         values, vectors = np.linalg.eigh(Q)
-        root = vectors * np.sqrt(np.clip(values, 0.0, None))
+        return vectors * np.sqrt(np.clip(values, 0.0, None))
+
+    def _draw_jitter(
+        self, root: np.ndarray | None, rng: np.random.Generator, out: np.ndarray | None = None
+    ) -> np.ndarray | None:
+        """Per particle, a draw of ``N(0, Q_nav)`` from its ``root`` (zero without one, in
+        ``out``; None without ``out``)."""
+        if root is None:
+            if out is not None:
+                out[...] = 0.0
+            return out
         return np.matmul(root, rng.standard_normal((6, self._parameters.count)), out=out)
 
     def _window_steps(self, context: Context):
@@ -335,9 +342,10 @@ class ParticleCloud:
         L = self._W_factor
         out = discrete_state.get_mutable_value(self._particles_index).reshape(STATE_SIZE, count)
         u_next = discrete_state.get_mutable_value(self._accelerations_index).reshape(D, 3, count)
-        jitter_next = None
+        jitter_next = root = None
         if self._jitter_index is not None:
             jitter_next = discrete_state.get_mutable_value(self._jitter_index).reshape(D, 6, count)
+            root = self._jitter_root(context)
         if draw is not None:
             particles, log_weights = defensive_draw(
                 draw[0], draw[1], count, rng, _HANDOVER_WIDENING
@@ -346,43 +354,34 @@ class ParticleCloud:
             for k in range(D):
                 np.matmul(L, rng.standard_normal((3, count)), out=u_next[k])
                 if jitter_next is not None:
-                    self._draw_jitter(context, rng, out=jitter_next[k])
+                    self._draw_jitter(root, rng, jitter_next[k])
         else:
             particles = self._stored(context)
             log_weights = self.log_weights(context)
             u = self.accelerations(context)
             jitter = self.jitter(context)
             first = self._posterior.Eval(context)[5]
+            chosen = None
             if first is None:
                 out[...] = particles
-                u_next[:-1] = u[1:]
-                if jitter is not None:
-                    jitter_next[:-1] = jitter[1:]
             else:  # the oldest step's ranges have all arrived: the posterior weighed them
                 weighed, acceleration = first
                 particles, log_weights, chosen = resample_regularised(
                     particles, weighed, rng, self._parameters, work=work
                 )
                 u_first = u[0]
-                jitter_first = None if jitter is None else jitter[0]
-                if chosen is None:
-                    u_next[:-1] = u[1:]
-                    if jitter is not None:
-                        jitter_next[:-1] = jitter[1:]
-                else:  # each particle's path follows it
+                if chosen is not None:  # each particle's path follows it
                     u_first = np.take(u_first, chosen, axis=1, out=work[1][:3], mode="clip")
-                    np.take(u[1:], chosen, axis=2, out=u_next[:-1], mode="clip")
-                    if jitter is not None:
-                        jitter_first = jitter[0][:, chosen]
-                        jitter_next[:-1] = jitter[1:][:, :, chosen]
-                if jitter_first is not None:
-                    particles = particles + jitter_first
+                if jitter is not None:  # and its draw of the navigation's noise
+                    particles = particles + (jitter[0] if chosen is None else jitter[0][:, chosen])
                 a = np.zeros(3) if host.error_model.navigated_motion else acceleration
                 G, B = transition(host.time_step)
                 self._move(particles, u_first, G, B @ a, out)
+            _shift_window(u, chosen, u_next)
             np.matmul(L, rng.standard_normal(out=work[3][:3]), out=u_next[-1])
-            if jitter_next is not None:
-                self._draw_jitter(context, rng, out=jitter_next[-1])
+            if jitter is not None:
+                _shift_window(jitter, chosen, jitter_next)
+                self._draw_jitter(root, rng, jitter_next[-1])
         x, P = weighted_moments(out, normalised(log_weights), work)
         host.write_prediction(discrete_state, x, P)
         discrete_state.set_value(self._log_weights_index, log_weights)
@@ -431,7 +430,7 @@ class ParticleCloud:
             self._parameters, weights=weights, moments=moments, work=work, out=out,
             W_factor=self._W_factor,
         )  # fmt: skip
-        jitter = self._draw_jitter(context, rng)
+        jitter = self._draw_jitter(self._jitter_root(context), rng)
         if jitter is not None:  # the modelled navigation errors' process noise
             out += jitter
         if resampled or weights is None:
@@ -439,3 +438,12 @@ class ParticleCloud:
         x, P = weighted_moments(out, weights, work)
         host.write_prediction(discrete_state, x, P)
         discrete_state.set_value(self._log_weights_index, log_weights)
+
+
+def _shift_window(slots: np.ndarray, chosen: np.ndarray | None, out: np.ndarray) -> None:
+    """The window's per-particle slots (D×·×N) moved one step on into ``out[:-1]``, each
+    particle's following it through a resampling (``chosen``)."""
+    if chosen is None:
+        out[:-1] = slots[1:]
+    else:
+        np.take(slots[1:], chosen, axis=2, out=out[:-1], mode="clip")
