@@ -47,7 +47,7 @@ from drake_uuv.models.particle_filter import (
     pf_update,
     weighted_moments,
 )
-from drake_uuv.models.pcrlb import bound_rmse, pcrlb_per_run_mean
+from drake_uuv.models.pcrlb import bound_rmse, pcrlb_over_runs
 from drake_uuv.models.unscented import SigmaPointParameters, ukf_range_update
 
 UPDATES = {"ekf": ekf_update, "iekf": iekf_update, "ukf": ukf_range_update}
@@ -284,7 +284,7 @@ def study(s, kind, runs, rule, pf, world_frame, first_seed=0, bridge=False) -> d
         nees.append(np.mean(ne))
         final.append(np.linalg.norm(e[-1, :3]))
         handovers.append(r["handover"])
-    bound = pcrlb_per_run_mean(
+    bound = pcrlb_over_runs(
         np.stack([r["x_true"][:, :3] for r in results]),
         np.stack([r["q_s"] for r in results]),
         s.P0,
@@ -292,7 +292,7 @@ def study(s, kind, runs, rule, pf, world_frame, first_seed=0, bridge=False) -> d
         s.eta,
         s.samples_per_step,
         s.time_step,
-    )
+    ).per_run_mean
     b_pos, _ = bound_rmse(bound, start)
     mse = np.array(mse)
     ok = np.isfinite(mse)

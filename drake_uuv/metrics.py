@@ -87,7 +87,7 @@ def run_information(log: dict[str, np.ndarray], scenario: Scenario) -> np.ndarra
     trajectory; a sonar without a return (``sonar_status`` not VALID) contributes nothing.
 
     Summed over runs it gives the Monte Carlo PCRLB (:func:`~drake_uuv.models.pcrlb.
-    pcrlb_monte_carlo`, see :mod:`drake_uuv.studies.statistics`). This is today's information
+    pcrlb_over_runs`, see :mod:`drake_uuv.studies.statistics`). This is today's information
     whatever the navigation and the sonar timing: each range that arrives at a tick counts
     there, at the tick's geometry, with the sonar's noise alone (:func:`bound_errors_on`
     says when the per-run bound of :func:`bound_covariances` is the extended one instead).

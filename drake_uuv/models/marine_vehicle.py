@@ -133,6 +133,10 @@ def rotation_rows(q: list[float]) -> list[list[float]]:
     ]
 
 
+# Each cross-product row i with the (j, m) that follow it cyclically.
+_CYCLIC = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
+
+
 class MarineVehicleModel:
     """One vehicle's ``M``, ``C(ν)``, ``D(ν)`` and ``g(η)``, and its accelerations.
 
@@ -245,34 +249,22 @@ class MarineVehicleModel:
         return np.array(self._bias(nu.tolist(), (self.M @ nu).tolist(), R_WB[2].tolist()))
 
     def _bias(self, nu: list[float], p: list[float], k: list[float]) -> list[float]:
-        u, v, w, wx, wy, wz = nu
-        p0, p1, p2, p3, p4, p5 = p
-        dl, dq, a, f = self._linear, self._quadratic, self._arm, self._net_weight
-        return [
-            wy * p2 - wz * p1 + (dl[0] + dq[0] * abs(u)) * u + f * k[0],
-            wz * p0 - wx * p2 + (dl[1] + dq[1] * abs(v)) * v + f * k[1],
-            wx * p1 - wy * p0 + (dl[2] + dq[2] * abs(w)) * w + f * k[2],
-            wy * p5
-            - wz * p4
-            + v * p2
-            - w * p1
-            + (dl[3] + dq[3] * abs(wx)) * wx
-            + a[1] * k[2]
-            - a[2] * k[1],
-            wz * p3
-            - wx * p5
-            + w * p0
-            - u * p2
-            + (dl[4] + dq[4] * abs(wy)) * wy
-            + a[2] * k[0]
-            - a[0] * k[2],
-            wx * p4
-            - wy * p3
-            + u * p1
-            - v * p0
-            + (dl[5] + dq[5] * abs(wz)) * wz
-            + a[0] * k[1]
-            - a[1] * k[0],
+        w, dl, dq, a, f = nu[3:], self._linear, self._quadratic, self._arm, self._net_weight
+        # Rows 0-2: ω × p_v + D_v(v) v + (W − B) k; rows 3-5: ω × p_ω + v × p_v + D_ω(ω) ω
+        # + a × k, with p = M ν and row i of each x × y written x[j] y[m] − x[m] y[j].
+        force = [
+            w[j] * p[m] - w[m] * p[j] + (dl[i] + dq[i] * abs(nu[i])) * nu[i] + f * k[i]
+            for i, j, m in _CYCLIC
+        ]
+        return force + [
+            w[j] * p[3 + m]
+            - w[m] * p[3 + j]
+            + nu[j] * p[m]
+            - nu[m] * p[j]
+            + (dl[3 + i] + dq[3 + i] * abs(w[i])) * w[i]
+            + a[j] * k[m]
+            - a[m] * k[j]
+            for i, j, m in _CYCLIC
         ]
 
     def acceleration(self, nu: np.ndarray, R_WB: np.ndarray, tau: np.ndarray) -> np.ndarray:

@@ -23,15 +23,15 @@ For linear-Gaussian dynamics the *only* expectation in the exact recursion is th
 measurement term ``M(k)``: the exact unconditional PCRLB is the recursion run **once** with
 ``M(k)`` averaged over the distribution of the true state at step k. With Monte Carlo runs,
 average the information increments ``H(x_k)ᵀ R⁻¹ H(x_k)`` over runs at each k and recurse
-once: :func:`pcrlb_monte_carlo`. That is neither "average J" nor "average J⁻¹" of per-run
-recursions. Because ``J ↦ (Q + A J⁻¹ Aᵀ)⁻¹`` is monotone and matrix-concave and inversion is
-matrix-convex,
+once (``unconditional`` of :func:`pcrlb_over_runs`). That is neither "average J" nor "average
+J⁻¹" of per-run recursions. Because ``J ↦ (Q + A J⁻¹ Aᵀ)⁻¹`` is monotone and
+matrix-concave and inversion is matrix-convex,
 
     PCRLB (averaged M)  ⪯  (mean over runs of J_run)⁻¹  ⪯  mean over runs of J_run⁻¹,
 
 so averaging per-run J is a slightly conservative approximation of the bound, and
-averaging per-run J⁻¹ (:func:`pcrlb_along_trajectory` per run, then the mean) the most
-conservative; only the first is a proven bound.
+averaging per-run J⁻¹ (:func:`pcrlb_along_trajectory` per run, then the mean:
+``per_run_mean``) the most conservative; only the first is a proven bound.
 
 The gap is not small here. Each run's ranges carry information in only two directions
 (the null direction ``q_s × q`` is across both lines of sight), and in the closed loop the
@@ -65,6 +65,8 @@ what navigation errors and the sound speed add, in :mod:`drake_uuv.models.naviga
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -217,7 +219,7 @@ def pcrlb_along_trajectory(
     ``P(0|−1)``, ``W`` (3×3), ``eta`` (2,) the range noise variances, ``samples_per_step`` f,
     ``available`` (N×2 bool, optional) which sonars returned (see
     :func:`measurement_information`).
-    For the Monte Carlo bound use :func:`pcrlb_monte_carlo` (see the module docstring).
+    For the Monte Carlo bound use :func:`pcrlb_over_runs` (see the module docstring).
     """
     M = measurement_information(q_true, q_s, eta, samples_per_step, available)
     return pcrlb_recursion(M, P0, W, time_step)
@@ -236,7 +238,17 @@ def _runs(q_true_runs: np.ndarray, q_s_runs: np.ndarray) -> tuple[np.ndarray, np
     return q, qs
 
 
-def pcrlb_monte_carlo(
+class MonteCarloBounds(NamedTuple):
+    """The two bounds of a set of Monte Carlo runs (each N×6×6)."""
+
+    # The unconditional PCRLB: the information increments averaged over runs, recursed once.
+    unconditional: np.ndarray
+    # The mean over runs of the per-trajectory bounds J_run(k)⁻¹: not a proven bound (see the
+    # module docstring), but what an estimator that is efficient on every trajectory attains.
+    per_run_mean: np.ndarray
+
+
+def pcrlb_over_runs(
     q_true_runs: np.ndarray,
     q_s_runs: np.ndarray,
     P0: np.ndarray,
@@ -244,40 +256,23 @@ def pcrlb_monte_carlo(
     eta: np.ndarray,
     samples_per_step: int,
     time_step: float,
-) -> np.ndarray:
-    """The unconditional PCRLB (N×6×6) from Monte Carlo runs: ``M(k)`` averaged over runs.
+) -> MonteCarloBounds:
+    """Both bounds of Monte Carlo runs, reported side by side.
 
     ``q_true_runs`` and ``q_s_runs`` have shape (runs×N×3) (``q_s_runs`` may also be (N×3)
-    when the attitude does not depend on the run). Averages ``H(x_k)ᵀ R⁻¹ H(x_k)`` over runs
-    at every k, then runs the recursion once: the expectation of the recursion sits inside J.
+    when the attitude does not depend on the run). The unconditional bound averages
+    ``H(x_k)ᵀ R⁻¹ H(x_k)`` over runs at every k, then runs the recursion once: the
+    expectation of the recursion sits inside J. The per-run mean recurses each run alone.
     """
     q, qs = _runs(q_true_runs, q_s_runs)
-    M = np.zeros((q.shape[1], 6, 6))
+    information = np.zeros((q.shape[1], 6, 6))
+    bounds = np.zeros((q.shape[1], 6, 6))
     for run in range(q.shape[0]):
-        M += measurement_information(q[run], qs[run], eta, samples_per_step)
-    return pcrlb_recursion(M / q.shape[0], P0, W, time_step)
-
-
-def pcrlb_per_run_mean(
-    q_true_runs: np.ndarray,
-    q_s_runs: np.ndarray,
-    P0: np.ndarray,
-    W: np.ndarray,
-    eta: np.ndarray,
-    samples_per_step: int,
-    time_step: float,
-) -> np.ndarray:
-    """Mean over runs of the per-trajectory bounds ``J_run(k)⁻¹`` (N×6×6).
-
-    Not a proven bound (see the module docstring), but what an estimator that is efficient
-    on every trajectory attains; report it beside :func:`pcrlb_monte_carlo`. Arguments as
-    there.
-    """
-    q, qs = _runs(q_true_runs, q_s_runs)
-    total = np.zeros((q.shape[1], 6, 6))
-    for run in range(q.shape[0]):
-        total += pcrlb_along_trajectory(q[run], qs[run], P0, W, eta, samples_per_step, time_step)
-    return total / q.shape[0]
+        M = measurement_information(q[run], qs[run], eta, samples_per_step)
+        information += M
+        bounds += pcrlb_recursion(M, P0, W, time_step)
+    runs = q.shape[0]
+    return MonteCarloBounds(pcrlb_recursion(information / runs, P0, W, time_step), bounds / runs)
 
 
 def kf_riccati_covariance(

@@ -12,8 +12,7 @@ from drake_uuv.models.pcrlb import (
     kf_riccati_covariance,
     measurement_information,
     pcrlb_along_trajectory,
-    pcrlb_monte_carlo,
-    pcrlb_per_run_mean,
+    pcrlb_over_runs,
     pcrlb_recursion,
 )
 from tests.conftest import ETA, T, W
@@ -121,18 +120,17 @@ def test_monte_carlo_averages_are_ordered(paper_geometry):
     rng = np.random.default_rng(1)
     runs = q + rng.normal(scale=0.7, size=(8, *q.shape))  # run-dependent geometry
     P0 = np.eye(6)
-    exact = pcrlb_monte_carlo(runs, q_s, P0, W, ETA, 1, T)
+    exact, mean_inverse = pcrlb_over_runs(runs, q_s, P0, W, ETA, 1, T)
     per_run = np.array([pcrlb_along_trajectory(r, q_s, P0, W, ETA, 1, T) for r in runs])
     mean_J_inverse = np.linalg.inv(np.mean(np.linalg.inv(per_run), axis=0))
-    mean_inverse = pcrlb_per_run_mean(runs, q_s, P0, W, ETA, 1, T)
     np.testing.assert_allclose(mean_inverse, per_run.mean(axis=0))
     assert _psd_le(exact, mean_J_inverse, rtol=1e-7)
     assert _psd_le(mean_J_inverse, mean_inverse, rtol=1e-7)
     # With identical runs all three coincide.
     same = np.broadcast_to(q, (3, *q.shape))
     single = pcrlb_along_trajectory(q, q_s, P0, W, ETA, 1, T)
-    np.testing.assert_allclose(pcrlb_monte_carlo(same, q_s, P0, W, ETA, 1, T), single)
-    np.testing.assert_allclose(pcrlb_per_run_mean(same, q_s, P0, W, ETA, 1, T), single)
+    for bound in pcrlb_over_runs(same, q_s, P0, W, ETA, 1, T):
+        np.testing.assert_allclose(bound, single)
 
 
 def test_bound_rmse():
