@@ -15,7 +15,9 @@ interactive bash, so messages show the bare name. ``--set tracking.alpha=1.0`` s
 of the variant in force.
 """
 
+import copy
 import dataclasses
+import functools
 import re
 import types
 import typing
@@ -40,7 +42,14 @@ class Tagged:
     value: Any
 
 
-class _YamlLoader(yaml.SafeLoader):
+# libyaml's parser and emitter when PyYAML has them (its wheels do): the same documents, about
+# ten times faster than the pure-Python ones, which matters to studies loading hundreds of
+# variants. Resolvers and constructors stay Python, so the customisations below apply to both.
+_SafeLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_SafeDumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+
+
+class _YamlLoader(_SafeLoader):
     """PyYAML's safe loader with YAML 1.2 floats (``1e-3`` is a number, not a string) and
     local tags (``!Name``) kept as :class:`Tagged`."""
 
@@ -59,7 +68,7 @@ _YamlLoader.add_implicit_resolver(
 )
 
 
-def _construct_tagged(loader: yaml.SafeLoader, suffix: str, node: yaml.Node) -> Tagged:
+def _construct_tagged(loader: Any, suffix: str, node: yaml.Node) -> Tagged:
     if isinstance(node, yaml.MappingNode):
         return Tagged(suffix, loader.construct_mapping(node, deep=True))
     if isinstance(node, yaml.SequenceNode):
@@ -71,7 +80,7 @@ def _construct_tagged(loader: yaml.SafeLoader, suffix: str, node: yaml.Node) -> 
 _YamlLoader.add_multi_constructor("!", _construct_tagged)
 
 
-class _YamlDumper(yaml.SafeDumper):
+class _YamlDumper(_SafeDumper):
     """Writes :class:`Tagged` mappings back with their tag, for Drake's loader."""
 
 
@@ -92,11 +101,18 @@ def _one_line(error: BaseException) -> str:
 # ----------------------------------------------------------------------------- variants
 
 
+@functools.cache
+def _type_hints(schema: type) -> dict[str, Any]:
+    """The resolved field types of a schema dataclass (resolving them is slow; they never
+    change)."""
+    return typing.get_type_hints(schema)
+
+
 def variants(schema: Any, name: str) -> dict[str, type]:
     """The variant dataclasses of field ``name`` of ``schema`` by tag, or {} if not a slot."""
     if schema is not Scenario or name not in SLOTS:
         return {}
-    hint = typing.get_type_hints(Scenario)[name]
+    hint = _type_hints(Scenario)[name]
     members = (
         typing.get_args(hint)
         if typing.get_origin(hint) in (typing.Union, types.UnionType)
@@ -196,8 +212,16 @@ def load_scenario(
 def scenario_from_dict(data: dict[str, Any]) -> Scenario:
     """Type-checks a plain dict against the schema, loads it with Drake and validates it."""
     tagged = _check_types(Scenario, data, prefix="")
+    text = yaml.dump(tagged, Dumper=_YamlDumper, allow_unicode=True)
+    # A copy: the cached scenario is never handed out, so a caller may change its own.
+    return copy.deepcopy(_typed_scenario(text))
+
+
+@functools.lru_cache(maxsize=512)
+def _typed_scenario(text: str) -> Scenario:
+    """Drake's typed load of a checked scenario document, validated; cached by its text, as
+    studies and tests load the same variants many times (Drake's loader is pure Python)."""
     try:
-        text = yaml.dump(tagged, Dumper=_YamlDumper, allow_unicode=True)
         scenario = yaml_load_typed(schema=Scenario, data=text)
     except Exception as e:  # Drake's loader: the pre-check should already have caught it.
         raise ScenarioError(f"scenario: {_one_line(e)}") from e
@@ -299,7 +323,7 @@ def _switch_variant(old: Any, value: Any, options: dict[str, type], key: str) ->
 
 
 def _resolved_type(schema: Any, name: str) -> Any:
-    return typing.get_type_hints(schema)[name]
+    return _type_hints(schema)[name]
 
 
 # ------------------------------------------------------------------------- type checks
@@ -309,7 +333,7 @@ def _check_types(schema: Any, data: Any, prefix: str) -> dict[str, Any]:
     """Checks ``data`` against the dataclass ``schema``; returns it with every slot tagged."""
     if not isinstance(data, dict):
         raise ScenarioError(f"{prefix.rstrip('.') or 'scenario'}: must be a mapping, got {data!r}")
-    hints = typing.get_type_hints(schema)
+    hints = _type_hints(schema)
     checked: dict[str, Any] = {}
     for key, value in data.items():
         name = f"{prefix}{key}" if str(key).isidentifier() else f"{prefix}{key!r}"
