@@ -3,9 +3,10 @@
 A new estimator, attitude strategy or plant is four files: its module, its dataclass (in the
 slot's scenario module, added to the slot's union), one line in its slot's factory (and the
 import it needs), and its test. Each case here writes exactly those into a copy of the
-repository and runs the new test with every test that enumerates the registered variants
-(scenario loading and fuzzing, the builder's registry, the diagram of every variant, the
-variants command, the package's architecture), which must all pass without another edit.
+repository (all three into one copy: they touch different slots) and runs the new tests with
+every test that enumerates the registered variants (scenario loading and fuzzing, the
+builder's registry, the diagram of every variant, the variants command, the package's
+architecture), which must all pass without another edit.
 """
 
 import shutil
@@ -14,6 +15,7 @@ import sys
 import textwrap
 from dataclasses import dataclass
 from pathlib import Path
+from xml.etree import ElementTree
 
 import pytest
 
@@ -301,26 +303,64 @@ def _apply(root: Path, recipe: Recipe) -> list[str]:
     return [recipe.module, recipe.config_file, recipe.factory_file, str(test.relative_to(root))]
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("recipe", [FROZEN, SPIN, DRIFTING], ids=lambda r: r.slot)
-def test_a_new_variant_is_four_files(tmp_path: Path, recipe: Recipe) -> None:
-    root = tmp_path / "repo"
+RECIPES = [FROZEN, SPIN, DRIFTING]
+
+
+@dataclass(frozen=True)
+class Copy:
+    """The copy with every recipe applied: each one's four files, the suite's verdicts."""
+
+    written: dict[str, list[str]]  # tag -> the four files it wrote
+    outcomes: dict[str, str]  # test id -> its outcome in the copy's suite
+    variants: str  # `drake-uuv variants` in the copy
+
+
+@pytest.fixture(scope="module")
+def copy(tmp_path_factory: pytest.TempPathFactory) -> Copy:
+    """One copy of the repository with the three recipes, its registry tests run once.
+
+    The recipes touch different slots, so applying them together is what three authors'
+    separate changes would give; one run of the registry tests then checks them all.
+    """
+    root = tmp_path_factory.mktemp("recipe") / "repo"
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".pytest_cache")
     for folder in ("drake_uuv", "tests", "diagrams", "studies"):
         shutil.copytree(REPO / folder, root / folder, ignore=ignore)
     for name in ("pyproject.toml", "README.md", "ARCHITECTURE.md"):
         shutil.copy(REPO / name, root / name)
-    written = _apply(root, recipe)
-    assert len(written) == 4
+    written = {recipe.tag: _apply(root, recipe) for recipe in RECIPES}
+    report = root / "report.xml"
     command = [
-        sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", "-m", "not slow",
-        *REGISTRY_TESTS, written[-1],
+        sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "0",
+        "-m", "not slow", f"--junitxml={report}", *REGISTRY_TESTS,
+        *(files[-1] for files in written.values()),
     ]  # fmt: skip
     result = subprocess.run(command, cwd=root, capture_output=True, text=True, timeout=600)
-    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    # The new variant is in the copy's registry, not in this one's.
-    check = subprocess.run(
+    assert report.exists(), result.stdout[-3000:] + result.stderr[-3000:]
+    outcomes = {}
+    for case in ElementTree.parse(report).iter("testcase"):
+        failed = case.find("failure") is not None or case.find("error") is not None
+        skipped = case.find("skipped") is not None
+        outcome = "failed" if failed else "skipped" if skipped else "passed"
+        outcomes[f"{case.get('classname')}::{case.get('name')}"] = outcome
+    assert outcomes, result.stdout[-3000:]
+    failures = [name for name, outcome in outcomes.items() if outcome == "failed"]
+    assert not failures, f"{failures}\n" + result.stdout[-3000:]
+    variants = subprocess.run(
         [sys.executable, "-m", "drake_uuv.cli", "variants"], cwd=root, capture_output=True,
         text=True, timeout=120,
     )  # fmt: skip
-    assert f"\n  {recipe.tag} " in check.stdout
+    return Copy(written, outcomes, variants.stdout)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("recipe", RECIPES, ids=lambda r: r.slot)
+def test_a_new_variant_is_four_files(copy: Copy, recipe: Recipe) -> None:
+    written = copy.written[recipe.tag]
+    assert len(written) == 4
+    # The recipe's own test ran in the copy and passed, beside every registry test.
+    module = f"tests.package.test_recipe_{recipe.tag.lower()}"
+    own = {name: outcome for name, outcome in copy.outcomes.items() if name.startswith(module)}
+    assert own and set(own.values()) == {"passed"}, own
+    # The new variant is in the copy's registry, not in this one's.
+    assert f"\n  {recipe.tag} " in copy.variants
