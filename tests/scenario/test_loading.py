@@ -230,3 +230,30 @@ def test_a_bare_name_is_a_variant_only_where_the_key_is_a_slot() -> None:
     assert scenario.estimator.noise_model == "paper_printed"
     with pytest.raises(ScenarioError, match=r"^estimator.noise_model: must be one of"):
         load_scenario("paper", ["estimator.noise_model=Ekf"])
+
+
+def test_a_loaded_scenario_is_the_callers_own_copy() -> None:
+    """Loading the same document twice gives equal but separate scenarios: changing one (its
+    nested lists too) leaves the next load as the file says."""
+    first = load_scenario("paper", ["steps=40", "steady_state_start=10"])
+    first.sonar.noise_variances[0] = 9.0
+    first.steps = 7
+    second = load_scenario("paper", ["steps=40", "steady_state_start=10"])
+    assert second.sonar.noise_variances == [0.01, 0.01] and second.steps == 40
+    assert second is not first and second.sonar is not first.sonar
+
+
+def test_every_shipped_scenario_parses_as_pure_python_yaml_does() -> None:
+    """The loader's parser (libyaml's when PyYAML has it) reads the shipped files exactly as
+    PyYAML's pure-Python parser with the same resolvers and tags."""
+    import yaml
+
+    from drake_uuv.scenario import loading
+
+    class PurePython(yaml.SafeLoader):
+        yaml_implicit_resolvers = loading._YamlLoader.yaml_implicit_resolvers
+
+    PurePython.add_multi_constructor("!", loading._construct_tagged)
+    for name in builtin_scenarios():
+        text = loading.resolve_scenario_path(name).read_text()
+        assert loading.parse_yaml(text) == yaml.load(text, Loader=PurePython), name  # noqa: S506
