@@ -1,11 +1,13 @@
 """Regenerates docs/results.md: the paper's figures, Monte Carlo statistics, the comparison
 tables, and a plain statement of which of the paper's claims reproduce.
 
-    python scripts/make_results_page.py                  # 100 runs per study (≈ 10 min, 2 cores)
+    python scripts/make_results_page.py                  # 100 runs per study (see below)
     python scripts/make_results_page.py --runs 20        # quicker, wider intervals
     python scripts/make_results_page.py --resume         # reuse finished runs in --work
 
 Studies are kept in ``--work`` (default ``out/results``); figures go to ``docs/figures/``.
+On a shared 2-core machine the whole page took about 30 min with the navigation section's runs
+already in ``--work`` (the comparison groups' 4100 runs about 10 min of it).
 Every sentence that states a number takes it from these runs. The groups it runs and its
 later sections (``SECTIONS``) come from the repository's ``studies/`` folder, loaded as
 ``drake-uuv compare`` loads it (:func:`drake_uuv.studies.load_studies`).

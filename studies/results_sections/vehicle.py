@@ -470,12 +470,14 @@ is v_s (`followable_target_scale`).
 
 ### Side by side
 
-*steps in band*: share of the steady-state steps whose mean NEES over the runs lies in the
-95 % band of that mean, `nees_band(6, runs)` = χ²(6·runs)/runs; *model_acceleration_rmse*: RMS
-of |(v(k+1) − v(k))/t − R u1(k)|, what the vehicle did not do of its commands (what the
-commanded prediction takes as motion); *thrust saturated*: share of the controller's 50 Hz
-ticks whose wrench the allocation scaled down; attitude error: mean over runs of each run's
-mean, and peak over all runs; *diverged*: final position error above 10 m.
+*runs*: completed of started (the estimator-health monitor stops a run whose innovations blow
+up; its metrics are not in the row); *steps in band*: share of the steady-state steps whose
+mean NEES over the runs lies in the 95 % band of that mean, `nees_band(6, runs)` =
+χ²(6·runs)/runs; *model_acceleration_rmse*: RMS of |(v(k+1) − v(k))/t − R u1(k)|, what the
+vehicle did not do of its commands (what the commanded prediction takes as motion); *thrust
+saturated*: share of the controller's 50 Hz ticks whose wrench the allocation scaled down;
+attitude error: mean over runs of each run's mean, and peak over all runs; *diverged*: final
+position error above 10 m.
 
 {_HEADER}
 {rows}
