@@ -121,6 +121,7 @@ def _run_cases() -> list:
 
 @pytest.mark.filterwarnings("error::UserWarning")  # a missing glyph, a layout that failed
 @pytest.mark.parametrize(("entry", "key"), _run_cases())
+@pytest.mark.slow
 def test_run_figure_keeps_every_text_inside(entry, key, logs) -> None:
     result = logs[key]
     assert entry.applies(result.log), f"{entry.name}: its example logs none of {entry.needs}"
@@ -133,6 +134,7 @@ def test_run_figure_keeps_every_text_inside(entry, key, logs) -> None:
 
 @pytest.mark.filterwarnings("error::UserWarning")
 @pytest.mark.parametrize("entry", STUDY_FIGURES, ids=lambda entry: entry.name)
+@pytest.mark.slow
 def test_study_figure_keeps_every_text_inside(entry, study) -> None:
     norms, scenario, bounds = study
     figure = entry.draw(norms, scenario, bounds=bounds)

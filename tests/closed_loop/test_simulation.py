@@ -160,6 +160,7 @@ def test_read_log_reads_a_saved_run(paper_run, tmp_path) -> None:
     ],
     ids=["paper", "timed-extended-bound"],
 )
+@pytest.mark.slow
 def test_a_run_logging_only_the_metric_signals_has_the_same_metrics(overrides) -> None:
     scenario = load_scenario("paper", [*overrides, "steps=120", "steady_state_start=40"])
     full = ClosedLoopSimulation(scenario).run()

@@ -101,6 +101,7 @@ def test_with_navigated_motion_the_dvl_walks_the_position_and_blurs_the_velocity
     assert_allclose(model.floor(X0, velocity), expected, rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_the_navigated_velocity_error_is_the_navigation_s_own():
     """``Σ_ev`` against the inertial navigation's formula, ``R_WB_nav (R_WBᵀ v + δ) − v``,
     sampled: each entry within five standard errors of its sample."""

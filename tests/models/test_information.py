@@ -69,6 +69,7 @@ def test_cap_grid_lies_in_the_cap_and_covers_it(max_angle: float) -> None:
     assert nearest.max() <= max_angle / 6
 
 
+@pytest.mark.slow
 def test_ball_grid_lies_in_the_ball_and_covers_it() -> None:
     rng = np.random.default_rng(2)
     ball = ball_rotations(0.3, rings=4)
@@ -311,6 +312,7 @@ def _run(p: InformationSeekingPlanner, seed: int, steps: int) -> np.ndarray:
         },
     ],
 )
+@pytest.mark.slow
 def test_budget_is_never_exceeded_on_random_inputs(options: dict) -> None:
     p = planner(**options)
     angles = rotation_angles(_run(p, seed=12, steps=300))
@@ -323,6 +325,7 @@ def test_budget_is_never_exceeded_on_random_inputs(options: dict) -> None:
 
 @pytest.mark.parametrize("budget", [0.1, 0.2, 0.39])
 @pytest.mark.parametrize("model", ["range_difference", "ranges"])
+@pytest.mark.slow
 def test_excitation_floor_holds_in_every_window_on_random_inputs(budget: float, model: str) -> None:
     """Random estimates each step (a new 'least known' direction every step, the hardest
     case for the floor); every window of N = 24 steps from the first has λ_min ≥ 1 m²."""

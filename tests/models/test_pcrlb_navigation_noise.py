@@ -37,6 +37,7 @@ def test_the_euler_jacobian_is_the_derivative_of_drakes_roll_pitch_yaw(rpy) -> N
     assert_allclose(euler_rate_jacobian(np.stack([R, R])), np.stack([E, E]))
 
 
+@pytest.mark.slow
 def test_the_rotation_vector_covariance_is_that_of_sampled_attitude_noise() -> None:
     """Σ_θ against the sample covariance of ``Log(R(rpy + n) R(rpy)ᵀ)``, n ~ N(0, diag σ²)."""
     rpy, sigma, runs = np.array([0.3, -0.4, 2.0]), np.array([0.01, 0.02, 0.03]), 20_000

@@ -158,6 +158,7 @@ def test_dvl_noise_per_body_axis_is_white_with_its_sigma() -> None:
     _check_normal(_body_velocity_error(log), 0.01)
 
 
+@pytest.mark.slow
 def test_the_biases_over_many_seeds_have_their_sigma() -> None:
     """1000 seeds' latched biases: the heading's and each DVL axis's are N(0, σ²)."""
     scenario = load_scenario("paper", [_inertial(heading=2.0, bias=0.005)])

@@ -83,6 +83,7 @@ def test_the_stepped_plant_is_drakes_rk3_on_the_continuous_diagram(fields: dict)
         assert_allclose(a[name], b[name], rtol=0.0, atol=1e-9, err_msg=name)
 
 
+@pytest.mark.slow
 def test_the_fixed_step_is_third_order_and_within_30_micrometres_of_rk5() -> None:
     # Kutta's RK3 at one step per controller period against Drake's RK5 at accuracy 1e-11,
     # the same controller: the global error of a third-order step falls as h³, 8-fold from

@@ -2,6 +2,7 @@
 timing and with ping offsets, a latency and a sound-speed error (the kinematic plant)."""
 
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from drake_uuv import ClosedLoopSimulation, load_scenario
@@ -43,6 +44,7 @@ def test_the_paper_timing_measures_the_logged_truth_at_the_tick() -> None:
     assert_standard_normal((log["ranges"] - true) / np.sqrt(eta))
 
 
+@pytest.mark.slow
 def test_pings_between_ticks_see_the_kinematic_plant_at_their_time() -> None:
     """τ = [0.1, 0.35] s, L = 0.4 s (d = [1, 2]), ε = 0.02: each arriving range's sonar is where
     the constant-acceleration formula puts it at the ping, from the logged states and

@@ -49,6 +49,7 @@ def test_the_groups_in_order_and_the_paper_s_three_run_by_default():
     assert study_module().GROUPS == list(GROUPS.values())
 
 
+@pytest.mark.slow
 def test_every_variant_loads_and_variant_names_are_unique():
     variants = [v for group in GROUPS.values() for v in group.variants()]
     names = [variant.name for variant in variants]

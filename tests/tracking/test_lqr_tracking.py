@@ -270,6 +270,7 @@ def test_without_feedforward_the_law_lags() -> None:
 
 
 @pytest.mark.parametrize("law", ["LqrTracking", "PaperTracking"])
+@pytest.mark.slow
 def test_acceleration_limit_is_never_exceeded(law: str) -> None:
     limit = 7.0
     scenario = load_scenario(

@@ -85,6 +85,7 @@ def test_lqr_in_the_world_frame_has_no_feedforward_from_turning() -> None:
     assert np.linalg.norm(body.GetOutputPort("u1_W").Eval(context)) > 1.0
 
 
+@pytest.mark.slow
 def test_a_far_standoff_is_trackable_in_the_world_frame_but_not_in_the_body_frame() -> None:
     """14 m standoff under Algorithm 2: the body-fixed point sweeps a 14 m circle every 24 s."""
     common = ["tracking=!LqrTracking", "tracking.desired_relative_position=[-10, -10, 0]",

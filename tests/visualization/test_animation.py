@@ -90,6 +90,7 @@ def test_trail_length_controls_visible_segments(tmp_path: Path, short_log, meshc
     assert not meshcat.HasPath(f"{SCENE_ROOT}/trails/uuv/000000")
 
 
+@pytest.mark.slow
 def test_paper_length_run_is_under_20_MB(tmp_path: Path, meshcat) -> None:
     out = record_animation(
         synthetic_log(500, seed=1), BASELINE_B, TIME_STEP, tmp_path / "a.html", meshcat=meshcat
