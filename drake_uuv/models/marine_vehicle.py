@@ -133,10 +133,6 @@ def rotation_rows(q: list[float]) -> list[list[float]]:
     ]
 
 
-# Each cross-product row i with the (j, m) that follow it cyclically.
-_CYCLIC = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
-
-
 class MarineVehicleModel:
     """One vehicle's ``M``, ``C(ν)``, ``D(ν)`` and ``g(η)``, and its accelerations.
 
@@ -249,22 +245,22 @@ class MarineVehicleModel:
         return np.array(self._bias(nu.tolist(), (self.M @ nu).tolist(), R_WB[2].tolist()))
 
     def _bias(self, nu: list[float], p: list[float], k: list[float]) -> list[float]:
-        w, dl, dq, a, f = nu[3:], self._linear, self._quadratic, self._arm, self._net_weight
-        # Rows 0-2: ω × p_v + D_v(v) v + (W − B) k; rows 3-5: ω × p_ω + v × p_v + D_ω(ω) ω
-        # + a × k, with p = M ν and row i of each x × y written x[j] y[m] − x[m] y[j].
-        force = [
-            w[j] * p[m] - w[m] * p[j] + (dl[i] + dq[i] * abs(nu[i])) * nu[i] + f * k[i]
-            for i, j, m in _CYCLIC
-        ]
-        return force + [
-            w[j] * p[3 + m]
-            - w[m] * p[3 + j]
-            + nu[j] * p[m]
-            - nu[m] * p[j]
-            + (dl[3 + i] + dq[3 + i] * abs(w[i])) * w[i]
-            + a[j] * k[m]
-            - a[m] * k[j]
-            for i, j, m in _CYCLIC
+        u, v, w, wx, wy, wz = nu
+        p0, p1, p2, p3, p4, p5 = p
+        dl, dq, a, f = self._linear, self._quadratic, self._arm, self._net_weight
+        # D(ν) ν: each axis's linear and quadratic damping.
+        d0, d1 = (dl[0] + dq[0] * abs(u)) * u, (dl[1] + dq[1] * abs(v)) * v
+        d2, d3 = (dl[2] + dq[2] * abs(w)) * w, (dl[3] + dq[3] * abs(wx)) * wx
+        d4, d5 = (dl[4] + dq[4] * abs(wy)) * wy, (dl[5] + dq[5] * abs(wz)) * wz
+        # With p = M ν, C(ν) ν is ω × p_v in the force and ω × p_ω + v × p_v in the moment; then
+        # g(η): (W − B) k in the force, the restoring arm's a × k in the moment.
+        return [
+            wy * p2 - wz * p1 + d0 + f * k[0],
+            wz * p0 - wx * p2 + d1 + f * k[1],
+            wx * p1 - wy * p0 + d2 + f * k[2],
+            wy * p5 - wz * p4 + v * p2 - w * p1 + d3 + a[1] * k[2] - a[2] * k[1],
+            wz * p3 - wx * p5 + w * p0 - u * p2 + d4 + a[2] * k[0] - a[0] * k[2],
+            wx * p4 - wy * p3 + u * p1 - v * p0 + d5 + a[0] * k[1] - a[1] * k[0],
         ]
 
     def acceleration(self, nu: np.ndarray, R_WB: np.ndarray, tau: np.ndarray) -> np.ndarray:
