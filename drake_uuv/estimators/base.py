@@ -129,6 +129,13 @@ class RelativeStateEstimator(LeafSystem):
             )  # fmt: skip
         # The model is frozen: whether it adds anything is known once, not asked every step.
         self._model_active = self._error_model.active
+        # Σ_θ at the tick's navigated attitude (None without attitude noise), computed once a
+        # tick: the ranges, the process noise and the published floor all use it.
+        self._sigma_theta = self.DeclareCacheEntry(
+            "attitude noise covariance",
+            ValueProducer(allocate=AbstractValue.Make(np.eye(3)).Clone, calc=self._calc_sigma),
+            {self._attitude_port.ticket()},
+        )
         self._window = None
         if not self._error_model.schedule.immediate:
             self._window = PingWindow(
@@ -292,10 +299,8 @@ class RelativeStateEstimator(LeafSystem):
         z = samples.sum(axis=1) / self._f  # samples.mean(axis=1)'s arithmetic, without its wrapper
         if not self._model_active:
             return Ranges(samples, z, valid, status, q_s)
-        model = self._error_model
-        return Ranges(
-            samples, z, valid, status, q_s, model.attitude_covariance(R_WB), model.range_variance(z)
-        )
+        sigma_theta, sound = self._sigma_theta.Eval(context), self._error_model.range_variance(z)
+        return Ranges(samples, z, valid, status, q_s, sigma_theta, sound)
 
     def filtered(self, context: Context) -> FilteredEstimate:
         """This step's filtered estimate (the cache entry behind ``x_TU_hat`` and ``P_TU``)."""
@@ -319,11 +324,14 @@ class RelativeStateEstimator(LeafSystem):
         this tick's commanded acceleration, navigated attitude and navigated velocity."""
         if not self._model_active:
             return None
-        motion = self.vehicle_motion
-        R_WB_nav = self._attitude_port.Eval(context).reshape(3, 3)
+        motion, sigma_theta = self.vehicle_motion, self._sigma_theta.Eval(context)
         return self._error_model.process_noise(
-            self._time_step, motion.acceleration(context), R_WB_nav, motion.offset(context)[3:]
+            self._time_step, motion.acceleration(context), sigma_theta, motion.offset(context)[3:]
         )
+
+    def _calc_sigma(self, context: Context, value: AbstractValue) -> None:
+        R_WB_nav = self._attitude_port.Eval(context).reshape(3, 3)
+        value.set_value(self._error_model.attitude_covariance(R_WB_nav))
 
     def write_prediction(
         self, discrete_state: DiscreteValues, x: np.ndarray, P: np.ndarray
@@ -374,9 +382,8 @@ class RelativeStateEstimator(LeafSystem):
         """``Σ_ev`` of the navigated velocity at this tick (navigated motion only)."""
         if not self._error_model.navigated_motion:
             return None
-        R_WB_nav = self._attitude_port.Eval(context).reshape(3, 3)
         return self._error_model.velocity_covariance(
-            self.vehicle_motion.offset(context)[3:], R_WB_nav
+            self.vehicle_motion.offset(context)[3:], self._sigma_theta.Eval(context)
         )
 
     def _filtered_by_update(self, context: Context) -> FilteredEstimate:

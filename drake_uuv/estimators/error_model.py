@@ -77,39 +77,45 @@ class ErrorModel:
             return None
         return (self.sound_speed_error * np.nan_to_num(z)) ** 2
 
-    def acceleration_covariance(self, a_W: np.ndarray, R_WB_nav: np.ndarray) -> np.ndarray | None:
-        """What the attitude noise adds to W for a step commanded with ``a_W`` (commanded
-        motion only; None otherwise)."""
-        if self.navigated_motion or not self.attitude_noise:
+    def acceleration_covariance(
+        self, a_W: np.ndarray, sigma_theta: np.ndarray | None
+    ) -> np.ndarray | None:
+        """What the attitude noise ``sigma_theta`` (:meth:`attitude_covariance`) adds to W for a
+        step commanded with ``a_W`` (commanded motion only; None otherwise)."""
+        if self.navigated_motion or sigma_theta is None:
             return None
-        sigma_theta = rotation_vector_covariance(R_WB_nav, self.errors.attitude_noise)
         return commanded_acceleration_noise(a_W, sigma_theta)
 
-    def velocity_covariance(self, v_W_nav: np.ndarray, R_WB_nav: np.ndarray) -> np.ndarray | None:
-        """``Σ_ev`` (3×3) of the navigated velocity's error at the navigated velocity and
-        attitude: ``(σ_v² + σ_b²) I + [v]× Σ_θ [v]×ᵀ`` (navigated motion only; None otherwise
-        or when it is zero)."""
+    def velocity_covariance(
+        self, v_W_nav: np.ndarray, sigma_theta: np.ndarray | None
+    ) -> np.ndarray | None:
+        """``Σ_ev`` (3×3) of the navigated velocity's error at the navigated velocity and the
+        attitude noise ``sigma_theta`` (:meth:`attitude_covariance`): ``(σ_v² + σ_b²) I +
+        [v]× Σ_θ [v]×ᵀ`` (navigated motion only; None otherwise or when it is zero)."""
         if not self.navigated_motion:
             return None
         dvl = self.errors.velocity_noise**2 + self.errors.velocity_bias**2
         covariance = dvl * np.eye(3)
-        if self.attitude_noise:
-            sigma_theta = rotation_vector_covariance(R_WB_nav, self.errors.attitude_noise)
+        if sigma_theta is not None:
             # θ × v has the covariance of θ × a: the same cross product.
             covariance += commanded_acceleration_noise(v_W_nav, sigma_theta)
         return covariance if covariance.any() else None
 
     def process_noise(
-        self, time_step: float, a_W: np.ndarray, R_WB_nav: np.ndarray, v_W_nav: np.ndarray
+        self,
+        time_step: float,
+        a_W: np.ndarray,
+        sigma_theta: np.ndarray | None,
+        v_W_nav: np.ndarray,
     ) -> np.ndarray | None:
         """What the navigation adds to a step's Q (6×6) with the paper's timing: the commanded
         acceleration's error through the double integrator (commanded motion), or the
         dead-reckoned position's walk ``t² Σ_ev`` (navigated motion). None when nothing."""
         Q = np.zeros((6, 6))
-        W = self.acceleration_covariance(a_W, R_WB_nav)
+        W = self.acceleration_covariance(a_W, sigma_theta)
         if W is not None:
             Q += process_noise_covariance(W, time_step)
-        velocity = self.velocity_covariance(v_W_nav, R_WB_nav)
+        velocity = self.velocity_covariance(v_W_nav, sigma_theta)
         if velocity is not None:
             Q[:3, :3] += (time_step * time_step) * velocity
         return Q if Q.any() else None

@@ -76,9 +76,10 @@ def gaussian_step(
     _, _, W = host.model
     navigated = model.navigated_motion
     a = np.zeros(3) if navigated else step.acceleration
-    extra_W = model.acceleration_covariance(a, step.R_start)
+    sigma_theta = model.attitude_covariance(step.R_start)
+    extra_W = model.acceleration_covariance(a, sigma_theta)
     P = P.copy()
-    velocity = model.velocity_covariance(step.start[3:], step.R_start) if navigated else None
+    velocity = model.velocity_covariance(step.start[3:], sigma_theta)
     if velocity is not None:  # the dead-reckoned position's walk over the step
         P[:3, :3] += (t * t) * velocity
     z, P_z = augment(x, P, W if extra_W is None else W + extra_W)

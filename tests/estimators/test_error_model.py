@@ -95,7 +95,9 @@ def test_with_navigated_motion_the_dvl_walks_the_position_and_blurs_the_velocity
     sigma_roll, sigma_pitch, sigma_yaw = ERRORS.attitude_noise
     dvl = ERRORS.velocity_noise**2 + ERRORS.velocity_bias**2
     velocity = np.diag([dvl, dvl + (sigma_yaw * 1.6) ** 2, dvl + (sigma_pitch * 1.6) ** 2])
-    assert_allclose(model.velocity_covariance(v, np.eye(3)), velocity, rtol=1e-12)
+    assert_allclose(
+        model.velocity_covariance(v, model.attitude_covariance(np.eye(3))), velocity, rtol=1e-12
+    )
     expected = heading_bias_floor(X0[None, :3], X0[None, 3:], ERRORS.heading_bias)[0]
     expected[3:, 3:] += velocity
     assert_allclose(model.floor(X0, velocity), expected, rtol=1e-12)
@@ -122,7 +124,7 @@ def test_the_navigated_velocity_error_is_the_navigation_s_own():
         )
         errors[j] = R_nav @ (R_WB.T @ v + dvl) - v
     sample = np.cov(errors.T)
-    expected = model.velocity_covariance(v, R_WB)
+    expected = model.velocity_covariance(v, model.attitude_covariance(R_WB))
     # The standard error of a sample covariance entry: sqrt((Σ_ii Σ_jj + Σ_ij²) / n).
     d = np.sqrt(np.diag(expected))
     standard_error = np.sqrt((np.outer(d, d) ** 2 + expected**2) / n)
