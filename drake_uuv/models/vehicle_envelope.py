@@ -40,7 +40,12 @@ import numpy as np
 from drake_uuv.models.attitude_plans import trajectory_attitude
 from drake_uuv.models.marine_vehicle import MarineVehicleModel
 from drake_uuv.models.thrust_allocation import ThrustAllocator
-from drake_uuv.models.vehicle_limits import VehicleLimits, utilisation_budget, vehicle_limits
+from drake_uuv.models.vehicle_limits import (
+    VehicleLimits,
+    thruster_loads,
+    utilisation_budget,
+    vehicle_limits,
+)
 
 __all__ = [
     "FeasibleLimits",
@@ -67,22 +72,23 @@ def plan_max_tilt(
 def largest_acceleration(
     model: MarineVehicleModel, allocator: ThrustAllocator, *, upper: float = 10.0, **demands: float
 ) -> float:
-    """The largest acceleration [m/s²] whose :func:`utilisation_budget` total, with the other
-    ``demands`` (its keyword arguments but ``acceleration``: ``speed``, ``angular_rate``,
-    ``rate_step``, ``tilt``, ``attitude_bandwidth``, ``attitude_damping_ratio``), is at most 1
-    (bisection on ``[0, upper]``: the total grows with the acceleration); 0 if the other
-    demands alone exceed the thrust."""
+    """The largest acceleration [m/s²] up to ``upper`` whose :func:`utilisation_budget` total,
+    with the other ``demands`` (the keywords of
+    :func:`~drake_uuv.models.vehicle_limits.thruster_loads` but ``acceleration``: ``speed``,
+    ``angular_rate``, ``rate_step``, ``tilt``, ``attitude_bandwidth``,
+    ``attitude_damping_ratio``), is at most 1; 0 if the other demands alone exceed the thrust.
 
-    def total(acceleration: float) -> float:
-        return utilisation_budget(model, allocator, acceleration=acceleration, **demands)["total"]
-
-    if total(0.0) > 1.0:
+    The total is ``max_i (a A_i + R_i)`` over thrusters i, with ``A_i`` the load of a unit
+    acceleration and ``R_i`` the other demands' summed load, so the answer is in closed form:
+    ``min_i (1 − R_i) / A_i``.
+    """
+    loads = thruster_loads(model, allocator, acceleration=1.0, **demands)
+    per_unit = loads.pop("acceleration")
+    rest = sum(loads.values())
+    if rest.max() > 1.0:
         return 0.0
-    low, high = 0.0, upper
-    for _ in range(40):
-        middle = 0.5 * (low + high)
-        low, high = (middle, high) if total(middle) <= 1.0 else (low, middle)
-    return low
+    pushed = per_unit > 0.0  # a thruster the acceleration does not load never limits it
+    return float(min(upper, np.min((1.0 - rest[pushed]) / per_unit[pushed], initial=upper)))
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,13 @@ import numpy as np
 from drake_uuv.models.marine_vehicle import MarineVehicleModel
 from drake_uuv.models.thrust_allocation import ThrustAllocator
 
-__all__ = ["VehicleLimits", "sphere_directions", "utilisation_budget", "vehicle_limits"]
+__all__ = [
+    "VehicleLimits",
+    "sphere_directions",
+    "thruster_loads",
+    "utilisation_budget",
+    "vehicle_limits",
+]
 
 
 def sphere_directions(n: int = 2000) -> np.ndarray:
@@ -100,7 +106,7 @@ def vehicle_limits(
     )
 
 
-def utilisation_budget(
+def thruster_loads(
     model: MarineVehicleModel,
     allocator: ThrustAllocator,
     *,
@@ -112,8 +118,9 @@ def utilisation_budget(
     attitude_bandwidth: float,
     attitude_damping_ratio: float,
     n: int = 400,
-) -> dict[str, float]:
-    """Worst-case utilisation of each demand of an operating envelope, and a bound of their sum.
+) -> dict[str, np.ndarray]:
+    """Each demand's worst load on each thruster over directions, ``max |A⁺ τ|_i / f_max``:
+    one array (per thruster) for each demand of an operating envelope,
 
     - ``acceleration`` [m/s²]: ``M [a d; 0]``;
     - ``speed`` [m/s]: drag ``D(ν) ν`` at ``v d``;
@@ -124,11 +131,8 @@ def utilisation_budget(
       loop first meets with ``M_rot 2ζω Δω`` (its rate-error gain);
     - ``tilt`` [rad]: the restoring moment ``g(η)`` at that tilt from upright.
 
-    Returns each part's worst utilisation and ``total``: per thruster, the sum of each part's
-    worst load on it, maximised over thrusters. That bounds the utilisation of any
-    combination of the demands (each thruster's load is a sum of the parts' loads), and is
-    far tighter than the sum of the parts when they load different thrusters (a rate step in
-    yaw and a tilt load the angled and the vertical group).
+    The acceleration's load is linear in ``acceleration``; no other load depends on it.
+    ``n`` directions sample the sphere (``n/4`` squared pairs for the coupling).
     """
     d = sphere_directions(n)
     zeros = np.zeros_like(d)
@@ -162,6 +166,22 @@ def utilisation_budget(
     rows = np.zeros((len(k_B), 3, 3))
     rows[:, 2] = k_B  # restoring_force reads only the third row of R_WB
     loads["tilt"] = _per_thruster(allocator, [model.restoring_force(R) for R in rows])
+    return loads
+
+
+def utilisation_budget(
+    model: MarineVehicleModel, allocator: ThrustAllocator, **envelope: float
+) -> dict[str, float]:
+    """Worst-case utilisation of each demand of an operating envelope (the keywords of
+    :func:`thruster_loads`), and a bound of their sum.
+
+    Returns each part's worst utilisation and ``total``: per thruster, the sum of each part's
+    worst load on it, maximised over thrusters. That bounds the utilisation of any
+    combination of the demands (each thruster's load is a sum of the parts' loads), and is
+    far tighter than the sum of the parts when they load different thrusters (a rate step in
+    yaw and a tilt load the angled and the vertical group).
+    """
+    loads = thruster_loads(model, allocator, **envelope)
     parts = {name: float(load.max()) for name, load in loads.items()}
     parts["total"] = float(sum(loads.values()).max())
     return parts

@@ -106,7 +106,6 @@ def test_feasible_limits_of_the_default_vehicle_on_the_paper_plan(vehicle, paper
     assert scenario.tracking.velocity_weight == pytest.approx(f.velocity_weight, rel=1e-3)
 
 
-@pytest.mark.slow
 def test_a_plan_that_never_tilts_leaves_more_acceleration(vehicle) -> None:
     config, model, allocator = vehicle
     kwargs = dict(
