@@ -193,15 +193,32 @@ def load_scenario(
     """Loads, overrides (``dotted.key=value`` strings) and validates a scenario."""
     path = resolve_scenario_path(name_or_path)
     try:
-        data = parse_yaml(path.read_text())
+        text = path.read_text()
     except OSError as e:
         raise ScenarioError(f"scenario file {str(path)!r}: cannot read it ({e.strerror})") from e
+    overrides = tuple(overrides)
+    for override in overrides:
+        if not isinstance(override, str):
+            raise ScenarioError(f"--set: expected dotted.key=value, got {override!r}")
+    # A copy: the cached scenario is never handed out, so a caller may change its own.
+    return copy.deepcopy(_loaded_scenario(str(path), text, overrides, seed))
+
+
+@functools.lru_cache(maxsize=512)
+def _loaded_scenario(
+    path: str, text: str, overrides: tuple[str, ...], seed: int | None
+) -> Scenario:
+    """A scenario file's text with its overrides and seed, loaded; cached by all four, as
+    tests and studies load the same scenario many times (the file's text is in the key, so an
+    edited file is loaded again). Errors are raised, not cached."""
+    try:
+        data = parse_yaml(text)
     except yaml.YAMLError as e:
-        raise ScenarioError(f"scenario file {str(path)!r}: not valid YAML ({_one_line(e)})") from e
+        raise ScenarioError(f"scenario file {path!r}: not valid YAML ({_one_line(e)})") from e
     if data is None:
         data = {}
     if not isinstance(data, dict):
-        raise ScenarioError(f"scenario file {str(path)!r}: must be a mapping, got {data!r}")
+        raise ScenarioError(f"scenario file {path!r}: must be a mapping, got {data!r}")
     for override in overrides:
         apply_override(data, override)
     if seed is not None:

@@ -3,6 +3,7 @@
 import dataclasses
 import math
 import re
+from pathlib import Path
 
 import pytest
 
@@ -241,6 +242,21 @@ def test_a_loaded_scenario_is_the_callers_own_copy() -> None:
     second = load_scenario("paper", ["steps=40", "steady_state_start=10"])
     assert second.sonar.noise_variances == [0.01, 0.01] and second.steps == 40
     assert second is not first and second.sonar is not first.sonar
+
+
+def test_an_edited_file_loads_as_it_now_reads(tmp_path: Path) -> None:
+    """Loads are cached by the file's text: a file changed between two loads is read again,
+    and the same text under other overrides or another seed is another scenario."""
+    path = tmp_path / "mine.yaml"
+    path.write_text("steps: 40\nsteady_state_start: 10\n")
+    assert load_scenario(str(path)).steps == 40
+    path.write_text("steps: 50\nsteady_state_start: 10\n")
+    assert load_scenario(str(path)).steps == 50
+    assert load_scenario(str(path), ["steps=60"]).steps == 60
+    assert load_scenario(str(path), seed=4).random_seed == 4
+    assert load_scenario(str(path)).random_seed != 4
+    with pytest.raises(ScenarioError, match=r"^--set: expected dotted.key=value, got 3$"):
+        load_scenario(str(path), [3])
 
 
 def test_every_shipped_scenario_parses_as_pure_python_yaml_does() -> None:
