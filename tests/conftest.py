@@ -6,15 +6,20 @@ The constants are the paper's simulation (§IV) unless a name says otherwise; im
 loads them as ``drake-uuv compare`` does.
 """
 
+from __future__ import annotations
+
 import importlib
 from pathlib import Path
 from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
-from drake_uuv.scenario import Scenario, load_scenario
-from drake_uuv.studies import load_studies
+# The package is imported where first used: pytest-xdist's controller loads this file too, and
+# runs no test.
+if TYPE_CHECKING:
+    from drake_uuv.scenario import Scenario
 
 #: The repository's studies folder: the groups of ``drake-uuv compare``, the results page.
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
@@ -34,6 +39,8 @@ X0 = np.array([-1.8, -2.3, 0.4, 0.05, 0.0, -0.02])
 @pytest.fixture
 def paper() -> Scenario:
     """The shipped paper scenario."""
+    from drake_uuv.scenario import load_scenario
+
     return load_scenario("paper")
 
 
@@ -41,5 +48,7 @@ def study_module(name: str = "") -> ModuleType:
     """The repository's ``studies/`` package (``name`` empty) or one of its modules
     (``"vehicle"``, ``"paired"``, ...), loaded by the loader of ``drake-uuv compare``
     (:func:`drake_uuv.studies.load_studies`)."""
+    from drake_uuv.studies import load_studies
+
     package = load_studies(STUDIES)
     return importlib.import_module(f"{package.__name__}.{name}") if name else package

@@ -9,8 +9,6 @@ from pathlib import Path
 import pytest
 
 nbformat = pytest.importorskip("nbformat", reason="the test extra: pip install -e '.[test]'")
-nbclient = pytest.importorskip("nbclient", reason="the test extra: pip install -e '.[test]'")
-pytest.importorskip("ipykernel", reason="the test extra: pip install -e '.[test]'")
 
 REPO = Path(__file__).resolve().parents[2]
 NOTEBOOK = REPO / "tutorials" / "drake_uuv_tutorial.ipynb"
@@ -29,6 +27,9 @@ def test_the_tutorial_runs_in_a_fresh_kernel_of_this_python(tmp_path, monkeypatc
     """Every cell runs without error (nbclient raises on the first that fails) in a new
     kernel started from ``sys.executable`` through a kernel spec of its own, so that neither
     a kernel installed elsewhere nor another checkout of the package is picked up."""
+    # Imported here: the kernel client costs every quick run a sixth of a second to import.
+    nbclient = pytest.importorskip("nbclient", reason="the test extra: pip install -e '.[test]'")
+    pytest.importorskip("ipykernel", reason="the test extra: pip install -e '.[test]'")
     spec = tmp_path / "jupyter" / "kernels" / KERNEL
     spec.mkdir(parents=True)
     argv = [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"]
