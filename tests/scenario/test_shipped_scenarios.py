@@ -75,6 +75,33 @@ def test_the_hovering_auv_is_as_accurate_as_the_kinematic_plant() -> None:
     assert not np.array_equal(rmse, reference)  # the vehicle's own dynamics ran
 
 
+def _mean_baseline_elevation(overrides: list[str]) -> float:
+    """The mean |vertical part| of the world baseline over |b| in 120 steps of the realistic
+    loop on the kinematic plant (the attitude does not depend on the noise)."""
+    scenario = load_scenario(
+        "realistic",
+        [
+            "plant=KinematicUuv",
+            "estimator=PaperKf",
+            "steps=120",
+            "steady_state_start=10",
+            *overrides,
+        ],
+    )
+    b_W = ClosedLoopSimulation(scenario).run(seed=0).log["b_W"]
+    return float(np.mean(np.abs(b_W[:, 2]) / np.linalg.norm(b_W, axis=1)))
+
+
+@pytest.mark.slow
+def test_realistic_s_attitude_plan_keeps_its_vertical_swing_under_the_rate_limit() -> None:
+    """The realistic file's slower vertical oscillation (1/48) gets through its 0.3 rad/s limit;
+    the paper's (1/6) keeps it without the limit and loses most of it with it."""
+    assert _mean_baseline_elevation([]) > 0.25
+    paper_plan = "attitude.h_frequency=0.16666666666666666"
+    assert _mean_baseline_elevation([paper_plan, "attitude.max_angular_rate=null"]) > 0.25
+    assert _mean_baseline_elevation([paper_plan]) < 0.15
+
+
 def test_realistic_is_the_navigation_study_s_particle_filter_row_on_the_vehicle() -> None:
     rows = {v.name: v for v in study_module("navigation").realistic_variants()}
     row = rows["realistic-auv-pf-modelled"]
