@@ -8,6 +8,7 @@ laptop user's ``--workers 16`` gives on a small machine, and what a 16-core mach
   initializer, each worker's first diagram build and the result's trip back;
 * **pickling**: one task (index, scenario, a chunk of 25 seeds) pickled and unpickled, and
   one chunk's result (the metrics and norms of 25 runs of the paper scenario);
+* each the fastest of repeated calls (the machine's noise only ever adds);
 * their share of a 200-run paper study on this machine (its runs' time from one worker).
 
     python benchmarks/bench_pool.py                    # 2 and 16 workers
@@ -18,21 +19,13 @@ import argparse
 import pickle
 import time
 
+from profile_loop import best_of  # this folder's loop profiler (the script's own folder)
+
 from drake_uuv.scenario import load_scenario
 from drake_uuv.studies.execution import default_workers, execute_local
 from drake_uuv.studies.runner import run_task
 
 CHUNK = 25  # seeds per task: the automatic chunk size's cap
-
-
-def _timed(function, repeats: int = 3) -> float:
-    """The fastest of ``repeats`` calls [s]: the machine's noise only ever adds."""
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        best = min(best, time.perf_counter() - start)
-    return best
 
 
 def main() -> None:
@@ -50,7 +43,7 @@ def main() -> None:
     per_run = (time.perf_counter() - start) / CHUNK
     for name, value in (("task", task), ("result", result)):
         data = pickle.dumps(value)
-        seconds = _timed(lambda v=value: pickle.loads(pickle.dumps(v)), repeats=20)
+        seconds = best_of(lambda v=value: pickle.loads(pickle.dumps(v)), repeats=20)
         print(f"pickling one {name} ({CHUNK} seeds): {len(data) / 1024:6.1f} KiB, "
               f"{1e3 * seconds:5.2f} ms there and back")  # fmt: skip
     study = 200 * per_run
@@ -61,8 +54,8 @@ def main() -> None:
 
     for workers in args.workers:
         tasks = [(i, one_step, [i]) for i in range(workers)]
-        serial = _timed(lambda t=tasks: execute_local(t, 1, done))
-        pooled = _timed(lambda t=tasks, w=workers: execute_local(t, w, done))
+        serial = best_of(lambda t=tasks: execute_local(t, 1, done))
+        pooled = best_of(lambda t=tasks, w=workers: execute_local(t, w, done))
         startup = pooled - serial
         share = startup / (study / min(workers, default_workers()) + startup)
         print(f"workers {workers:2d}: pool start-up {1e3 * startup:6.1f} ms "
