@@ -8,6 +8,7 @@ from drake_uuv.models.measurement import VALID, range_difference_noise
 from drake_uuv.models.navigation_noise import (
     commanded_acceleration_noise,
     heading_bias_floor,
+    navigated_velocity_covariance,
     range_attitude_jacobian,
     rotation_vector_covariance,
     sound_speed_floor,
@@ -235,8 +236,9 @@ def extended_bound(log: dict[str, np.ndarray], scenario: Scenario) -> tuple[np.n
         W = W + commanded_acceleration_noise(log["u1_W"], Sigma)
     velocity = np.zeros((len(R_WB), 3, 3))
     if motion == "navigation":  # the navigated velocity's error Σ_ev, on the true motion
-        velocity += (nav.velocity_noise**2 + nav.velocity_bias**2) * np.eye(3)
-        velocity += commanded_acceleration_noise(log["v_WU"], Sigma)
+        velocity += navigated_velocity_covariance(
+            log["v_WU"], Sigma, nav.velocity_noise, nav.velocity_bias
+        )
     bound = pcrlb_timed(
         tau,
         lag,

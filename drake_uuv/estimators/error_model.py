@@ -41,6 +41,7 @@ from drake_uuv.models.navigation_noise import (
     NavigationErrors,
     commanded_acceleration_noise,
     heading_bias_floor,
+    navigated_velocity_covariance,
     rotation_vector_covariance,
     sound_speed_floor,
 )
@@ -94,11 +95,10 @@ class ErrorModel:
         [v]× Σ_θ [v]×ᵀ`` (navigated motion only; None otherwise or when it is zero)."""
         if not self.navigated_motion:
             return None
-        dvl = self.errors.velocity_noise**2 + self.errors.velocity_bias**2
-        covariance = dvl * np.eye(3)
-        if sigma_theta is not None:
-            # θ × v has the covariance of θ × a: the same cross product.
-            covariance += commanded_acceleration_noise(v_W_nav, sigma_theta)
+        errors = self.errors
+        covariance = navigated_velocity_covariance(
+            v_W_nav, sigma_theta, errors.velocity_noise, errors.velocity_bias
+        )
         return covariance if covariance.any() else None
 
     def process_noise(

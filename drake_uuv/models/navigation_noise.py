@@ -138,6 +138,19 @@ def commanded_acceleration_noise(acceleration: np.ndarray, Sigma: np.ndarray) ->
     return skew @ Sigma @ np.swapaxes(skew, -1, -2)
 
 
+def navigated_velocity_covariance(
+    velocity: np.ndarray, Sigma: np.ndarray | None, velocity_noise: float, velocity_bias: float
+) -> np.ndarray:
+    """``Σ_ev = (σ_v² + σ_b²) I + [v]× Σ_θ [v]×ᵀ`` (…×3×3): the error of a navigated velocity
+    ``R_WB_nav v_B`` at the world velocity ``v`` (…×3), from the DVL's white noise σ_v and bias
+    σ_b per axis and the attitude noise ``Σ_θ`` turning it (``θ × v``, the same cross product
+    as :func:`commanded_acceleration_noise`; none when ``Sigma`` is None)."""
+    covariance = (velocity_noise**2 + velocity_bias**2) * np.eye(3)
+    if Sigma is None:
+        return covariance
+    return covariance + commanded_acceleration_noise(velocity, Sigma)
+
+
 def heading_bias_floor(q: np.ndarray, velocity: np.ndarray, heading_bias: float) -> np.ndarray:
     """``σ_ψ² g gᵀ`` (N×6×6), ``g = [e_z × q, e_z × ϑ]``: the error a heading bias of σ
     ``heading_bias`` [rad] leaves at the true relative positions ``q`` and velocities ``ϑ``

@@ -88,7 +88,7 @@ def largest_acceleration(
     if rest.max() > 1.0:
         return 0.0
     pushed = per_unit > 0.0  # a thruster the acceleration does not load never limits it
-    return float(min(upper, np.min((1.0 - rest[pushed]) / per_unit[pushed], initial=upper)))
+    return float(np.min((1.0 - rest[pushed]) / per_unit[pushed], initial=upper))
 
 
 @dataclass(frozen=True)

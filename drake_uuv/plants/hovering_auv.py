@@ -5,7 +5,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from drake_uuv.plants.base import PlantSetting
 from drake_uuv.plants.hovering_auv_stepped import SteppedHoveringAuv
-from drake_uuv.plants.low_level_controller import LowLevelController
+from drake_uuv.plants.low_level_controller import ControllerStates, LowLevelController
 from drake_uuv.plants.marine_vehicle import MarineVehicle
 from drake_uuv.primitives.signal import Signal
 from drake_uuv.scenario.plants import HoveringAuv
@@ -139,15 +139,7 @@ class HoveringAuvPlant(Diagram):
             builder.ExportInput(inputs.GetInputPort(name), name)
         for name in ("p_WU", "v_WU", "R_WB", "w_WB", "nu_B", "thrust"):
             builder.ExportOutput(outputs.GetOutputPort(name), name)
-        for name in (
-            "thrust_command",
-            "R_WB_command",
-            "w_WB_command",
-            "v_WU_command",
-            "wrench_command",
-            "allocation_scale",
-            "saturation_ticks",
-        ):
+        for name in ControllerStates.OUTPUTS:  # the controller's, from either system
             builder.ExportOutput(inputs.GetOutputPort(name), name)
         builder.BuildInto(self)
         self._config, self._time_step = config, setting.time_step

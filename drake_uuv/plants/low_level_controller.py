@@ -180,6 +180,17 @@ class ControllerStates:
     the latch is published by a state output port (``LowLevelController``'s outputs).
     """
 
+    #: The state output ports, in the order of the groups they publish.
+    OUTPUTS = (
+        "thrust_command",
+        "R_WB_command",
+        "w_WB_command",
+        "v_WU_command",
+        "wrench_command",
+        "allocation_scale",
+        "saturation_ticks",
+    )
+
     def __init__(self, system: LeafSystem, num_thrusters: int, initial_R_WB: np.ndarray) -> None:
         R0 = initial_R_WB.ravel()
         self.latch_group = system.DeclareDiscreteState(np.concatenate([np.zeros(6), R0, [0.0]]))
@@ -192,15 +203,11 @@ class ControllerStates:
         # Counts for the run's statistics: fast ticks, and those whose force, moment, either
         # the allocation had to scale down (a thruster at its limit).
         self.saturation = system.DeclareDiscreteState(np.zeros(4))
-        for name, group in (
-            ("thrust_command", self.thrust),
-            ("R_WB_command", self.target),
-            ("w_WB_command", self.rate),
-            ("v_WU_command", self.velocity),
-            ("wrench_command", self.wrench),
-            ("allocation_scale", self.scale),
-            ("saturation_ticks", self.saturation),
-        ):
+        published = (
+            self.thrust, self.target, self.rate, self.velocity, self.wrench, self.scale,
+            self.saturation,
+        )  # fmt: skip
+        for name, group in zip(self.OUTPUTS, published, strict=True):
             system.DeclareStateOutputPort(name, group)
 
     def latch(self, context: Context) -> Latch:

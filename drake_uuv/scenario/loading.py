@@ -200,7 +200,6 @@ def load_scenario(
     for override in overrides:
         if not isinstance(override, str):
             raise ScenarioError(f"--set: expected dotted.key=value, got {override!r}")
-    # A copy: the cached scenario is never handed out, so a caller may change its own.
     return copy.deepcopy(_loaded_scenario(str(path), text, overrides, seed))
 
 
@@ -223,15 +222,19 @@ def _loaded_scenario(
         apply_override(data, override)
     if seed is not None:
         data["random_seed"] = seed
-    return scenario_from_dict(data)
+    return _checked_scenario(data)
 
 
 def scenario_from_dict(data: dict[str, Any]) -> Scenario:
     """Type-checks a plain dict against the schema, loads it with Drake and validates it."""
+    return copy.deepcopy(_checked_scenario(data))
+
+
+def _checked_scenario(data: dict[str, Any]) -> Scenario:
+    """:func:`scenario_from_dict` without the copy: the cached scenario itself, which the
+    public loaders copy before handing it out (so a caller may change its own)."""
     tagged = _check_types(Scenario, data, prefix="")
-    text = yaml.dump(tagged, Dumper=_YamlDumper, allow_unicode=True)
-    # A copy: the cached scenario is never handed out, so a caller may change its own.
-    return copy.deepcopy(_typed_scenario(text))
+    return _typed_scenario(yaml.dump(tagged, Dumper=_YamlDumper, allow_unicode=True))
 
 
 @functools.lru_cache(maxsize=512)
