@@ -129,3 +129,144 @@ def is_rotation(R: np.ndarray, tolerance: float = 1e-9) -> bool:
         and np.max(np.abs(R.T @ R - np.eye(3))) < tolerance
         and abs(np.linalg.det(R) - 1.0) < tolerance
     )
+
+
+# --------------------------------------------------------------- over a leading run axis
+# The batched systems hold one rotation per run: these take ``(..., 3)`` vectors and
+# ``(..., 3, 3)`` matrices and work element by element over the leading axes, so run i's
+# numbers do not depend on the other runs (the same bits alone or in any batch). The
+# single-rotation functions above stay for code that holds one rotation (analysis, tests).
+
+
+def hat_runs(w: np.ndarray) -> np.ndarray:
+    """``hat`` of each ``(..., 3)`` vector: ``(..., 3, 3)``."""
+    w = np.asarray(w, dtype=float)
+    K = np.zeros((*w.shape[:-1], 3, 3))
+    K[..., 0, 1], K[..., 0, 2] = -w[..., 2], w[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = w[..., 2], -w[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -w[..., 1], w[..., 0]
+    return K
+
+
+def cross_runs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` over leading axes (broadcast), written out (no ``np.cross`` dispatch)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return np.stack(
+        (
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ),
+        axis=-1,
+    )
+
+
+def norm_runs(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each ``(..., n)`` vector, summed in index order."""
+    v = np.asarray(v, dtype=float)
+    total = v[..., 0] * v[..., 0]
+    for j in range(1, v.shape[-1]):
+        total = total + v[..., j] * v[..., j]
+    return np.sqrt(total)
+
+
+def exp_so3_runs(rotation_vector: np.ndarray) -> np.ndarray:
+    """Exp of each ``(..., 3)`` rotation vector (Rodrigues): ``(..., 3, 3)``."""
+    w = np.asarray(rotation_vector, dtype=float)
+    theta = norm_runs(w)
+    K = hat_runs(w)
+    KK = K @ K
+    small = theta < _SMALL_ANGLE
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5, (1.0 - np.cos(safe)) / (safe * safe))
+    return _I3 + a[..., None, None] * K + b[..., None, None] * KK
+
+
+def matrix_from_quaternion_runs(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of each unit quaternion ``(..., 4)`` ``[w, x, y, z]``: ``(..., 3, 3)``."""
+    q = np.asarray(q, dtype=float)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    R = np.empty((*q.shape[:-1], 3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = (
+        1 - 2 * (y * y + z * z),
+        2 * (x * y - w * z),
+        2 * (x * z + w * y),
+    )
+    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = (
+        2 * (x * y + w * z),
+        1 - 2 * (x * x + z * z),
+        2 * (y * z - w * x),
+    )
+    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = (
+        2 * (x * z - w * y),
+        2 * (y * z + w * x),
+        1 - 2 * (x * x + y * y),
+    )
+    return R
+
+
+def quaternion_from_matrix_runs(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion ``[w, x, y, z]``, ``w ≥ 0``, of each ``(..., 3, 3)`` rotation
+    (Shepperd's method: the largest of the four candidates, as :func:`quaternion_from_matrix`)."""
+    R = np.asarray(R, dtype=float)
+    d0, d1, d2 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    trace = d0 + d1 + d2
+    i = np.where(d0 >= d1, 0, 1)
+    i = np.where(d2 > np.where(i == 0, d0, d1), 2, i)
+    largest = np.choose(i, (d0, d1, d2))
+    shape = (*R.shape[:-2], 4)
+    candidates = np.empty((4, *shape))
+    # trace branch
+    w = 0.5 * np.sqrt(np.maximum(1.0 + trace, 0.0))
+    s = 0.25 / np.where(w > 0.0, w, 1.0)
+    candidates[0] = np.stack(
+        (w, (R[..., 2, 1] - R[..., 1, 2]) * s, (R[..., 0, 2] - R[..., 2, 0]) * s,
+         (R[..., 1, 0] - R[..., 0, 1]) * s), axis=-1,
+    )  # fmt: skip
+    for axis in range(3):
+        j, k = (axis + 1) % 3, (axis + 2) % 3
+        v = 0.5 * np.sqrt(np.maximum(1.0 + R[..., axis, axis] - R[..., j, j] - R[..., k, k], 0.0))
+        s = 0.25 / np.where(v > 0.0, v, 1.0)
+        q = np.empty(shape)
+        q[..., 0] = (R[..., k, j] - R[..., j, k]) * s
+        q[..., 1 + axis] = v
+        q[..., 1 + j] = (R[..., j, axis] + R[..., axis, j]) * s
+        q[..., 1 + k] = (R[..., k, axis] + R[..., axis, k]) * s
+        candidates[1 + axis] = q
+    choice = np.where(trace >= largest, 0, 1 + i)
+    q = np.take_along_axis(candidates, choice[None, ..., None], axis=0)[0]
+    q = np.where(q[..., :1] < 0.0, -q, q)
+    return q / norm_runs(q)[..., None]
+
+
+def log_so3_runs(R: np.ndarray) -> np.ndarray:
+    """Log of each ``(..., 3, 3)`` rotation: ``(..., 3)`` rotation vectors, angle in [0, π]."""
+    q = quaternion_from_matrix_runs(R)
+    v = q[..., 1:]
+    s = norm_runs(v)
+    small = s < _SMALL_ANGLE
+    safe = np.where(small, 1.0, s)
+    scale = np.where(small, 2.0, 2.0 * np.arctan2(s, q[..., 0]) / safe)
+    return scale[..., None] * v
+
+
+def minimal_rotation_runs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`minimal_rotation` of each pair (``a``, ``b`` broadcast over leading axes):
+    the least rotation taking ``a``'s direction to ``b``'s, ``(..., 3, 3)``."""
+    a, b = np.broadcast_arrays(np.asarray(a, dtype=float), np.asarray(b, dtype=float))
+    a_unit = a / norm_runs(a)[..., None]
+    b_unit = b / norm_runs(b)[..., None]
+    axis = cross_runs(a_unit, b_unit)
+    sin_angle = norm_runs(axis)
+    cos_angle = (a_unit * b_unit).sum(axis=-1)
+    aligned = sin_angle < _SMALL_ANGLE
+    angle = np.arctan2(sin_angle, cos_angle)
+    rotation = axis * (angle / np.where(aligned, 1.0, sin_angle))[..., None]
+    # Antiparallel: a half-turn about the axis perpendicular to a from its least-aligned basis axis.
+    basis = np.eye(3)[np.argmin(np.abs(a_unit), axis=-1)]
+    perpendicular = cross_runs(a_unit, basis)
+    half_turn = math.pi * perpendicular / norm_runs(perpendicular)[..., None]
+    flip = aligned & (cos_angle <= 0.0)
+    rotation = np.where(flip[..., None], half_turn, np.where(aligned[..., None], 0.0, rotation))
+    return exp_so3_runs(rotation)

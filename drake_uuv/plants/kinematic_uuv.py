@@ -3,8 +3,9 @@
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from drake_uuv.models.motion import double_integrator_step
-from drake_uuv.models.so3 import exp_so3
+from drake_uuv.models.so3 import exp_so3_runs
 from drake_uuv.plants.base import PlantSetting
+from drake_uuv.primitives.batch import batch_size_field, per_run, tiled
 from drake_uuv.scenario.plants import KinematicUuv
 
 
@@ -37,32 +38,40 @@ class KinematicUuvPlant(LeafSystem):
       midpoint of the sonars) in the world [m, m/s].
     - ``R_WB`` (9): attitude ``R`` (body to world), row-major.
 
+    Sizes are per run: with ``batch_size`` B every port and state holds B runs row-major
+    (:mod:`drake_uuv.primitives.batch`), each run from the setting's initial state.
+
     ``config`` (:class:`~drake_uuv.scenario.KinematicUuv`) has no parameters; the period and
     the initial state are the ``setting``'s.
     """
 
-    def __init__(self, config: KinematicUuv, *, setting: PlantSetting) -> None:
+    def __init__(self, config: KinematicUuv, *, setting: PlantSetting, batch_size: int = 1) -> None:
         super().__init__()
         self._time_step = setting.time_step
-        self._u1_port = self.DeclareVectorInputPort("u1_B", 3)
-        self._u2_port = self.DeclareVectorInputPort("u2_W", 3)
-        self._p_index = self.DeclareDiscreteState(setting.initial_position)
-        self._v_index = self.DeclareDiscreteState(setting.initial_velocity)
-        self._R_index = self.DeclareDiscreteState(setting.initial_R_WB.ravel())
+        self.batch_size = B = batch_size_field(batch_size)
+        self._u1_port = self.DeclareVectorInputPort("u1_B", 3 * B)
+        self._u2_port = self.DeclareVectorInputPort("u2_W", 3 * B)
+        self._p_index = self.DeclareDiscreteState(tiled(setting.initial_position, B))
+        self._v_index = self.DeclareDiscreteState(tiled(setting.initial_velocity, B))
+        self._R_index = self.DeclareDiscreteState(tiled(setting.initial_R_WB, B))
         self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
         self.DeclareStateOutputPort("p_WU", self._p_index)
         self.DeclareStateOutputPort("v_WU", self._v_index)
         self.DeclareStateOutputPort("R_WB", self._R_index)
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        state = context.get_discrete_state()
-        R = state.value(self._R_index).reshape(3, 3)
-        a_W = R @ self._u1_port.Eval(context)
+        state, B = context.get_discrete_state(), self.batch_size
+        R = per_run(state.value(self._R_index), B, 3, 3)
+        u1 = per_run(self._u1_port.Eval(context), B)
+        a_W = (R @ u1[:, :, None])[:, :, 0]
         p, v = double_integrator_step(
-            state.value(self._p_index), state.value(self._v_index), a_W, self._time_step
+            per_run(state.value(self._p_index), B),
+            per_run(state.value(self._v_index), B),
+            a_W,
+            self._time_step,
         )
-        R_next = exp_so3(self._u2_port.Eval(context) * self._time_step) @ R
-        R_next = 1.5 * R_next - 0.5 * (R_next @ (R_next.T @ R_next))
-        discrete_state.set_value(self._p_index, p)
-        discrete_state.set_value(self._v_index, v)
+        R_next = exp_so3_runs(per_run(self._u2_port.Eval(context), B) * self._time_step) @ R
+        R_next = 1.5 * R_next - 0.5 * (R_next @ (R_next.transpose(0, 2, 1) @ R_next))
+        discrete_state.set_value(self._p_index, p.ravel())
+        discrete_state.set_value(self._v_index, v.ravel())
         discrete_state.set_value(self._R_index, R_next.ravel())

@@ -8,14 +8,23 @@ RANDOM_INPUTS = "random_inputs"
 
 
 def declare_random_input(
-    system: LeafSystem, name: str, size: int, distribution: RandomDistribution
+    system: LeafSystem,
+    name: str,
+    size: int,
+    distribution: RandomDistribution,
+    *,
+    batch_size: int = 1,
 ) -> InputPort:
-    """Declares a random vector input port and records it in ``system.random_inputs``.
+    """Declares a random vector input port of ``size`` values per run for a batch of
+    ``batch_size`` runs (``batch_size · size`` entries, row-major by run) and records it in
+    ``system.random_inputs``.
 
-    The builder feeds each recorded port from a seeded ``RandomSource`` of its distribution
-    (standard normal, uniform on [0, 1) or exponential of mean 1), sampled once per step.
+    The builder feeds each recorded port from a :class:`~drake_uuv.primitives.run_noise.RunNoise`
+    source of its distribution (standard normal, uniform on [0, 1) or exponential of mean 1),
+    named like the port, whose run i draws from run i's own seed: one draw per run and step,
+    the same at the tick's publish and updates.
     """
-    port = system.DeclareVectorInputPort(name, size, distribution)
+    port = system.DeclareVectorInputPort(name, batch_size * size, distribution)
     if not hasattr(system, RANDOM_INPUTS):
         setattr(system, RANDOM_INPUTS, {})
     getattr(system, RANDOM_INPUTS)[name] = distribution

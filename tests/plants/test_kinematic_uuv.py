@@ -13,7 +13,7 @@ from pydrake.systems.primitives import ConstantVectorSource
 
 from drake_uuv.plants import KinematicUuvPlant, PlantSetting, make_plant, plant_setting
 from drake_uuv.scenario import KinematicUuv, Scenario, load_scenario
-from drake_uuv.testing import discrete_update, fixed_context
+from drake_uuv.testing import assert_batch_equals_runs, discrete_update, fixed_context
 from tests.conftest import T
 
 
@@ -109,3 +109,30 @@ def test_the_setting_is_checked_and_read_only() -> None:
     ):
         with pytest.raises(ValueError, match=message):
             dataclasses.replace(setting, **{field: value})
+
+
+@pytest.mark.parametrize("batch_size", [1, 2, 7])
+def test_a_batch_step_is_each_run_alone(batch_size: int) -> None:
+    """Random batches: outputs and the update of B runs equal B single runs, bit for bit."""
+    rng = np.random.default_rng(batch_size)
+    R = np.array(
+        [RotationMatrix(RollPitchYaw(rng.normal(size=3))).matrix() for _ in range(batch_size)]
+    )
+    states = [
+        rng.normal(size=(batch_size, 3)),
+        rng.normal(size=(batch_size, 3)),
+        R.reshape(batch_size, 9),
+    ]
+    inputs = {"u1_B": rng.normal(size=(batch_size, 3)), "u2_W": rng.normal(size=(batch_size, 3))}
+    inputs["u2_W"][0] = 0.0  # the small-angle branch of Exp beside the others
+    scenario = Scenario()
+
+    def make(B: int) -> KinematicUuvPlant:
+        return KinematicUuvPlant(KinematicUuv(), setting=plant_setting(scenario), batch_size=B)
+
+    assert_batch_equals_runs(make, inputs, states)
+
+
+def test_a_bad_batch_size_is_named() -> None:
+    with pytest.raises(ValueError, match=r"batch_size: must be an integer ≥ 1, got 0"):
+        KinematicUuvPlant(KinematicUuv(), setting=plant_setting(Scenario()), batch_size=0)

@@ -8,7 +8,7 @@ from pydrake.systems.primitives import AddRandomInputs
 
 from drake_uuv.plants import TargetRandomWalk
 from drake_uuv.scenario import TargetConfig
-from drake_uuv.testing import discrete_update, fixed_context
+from drake_uuv.testing import assert_batch_equals_runs, discrete_update, fixed_context
 from tests.conftest import T
 
 W = np.array([[0.004, 0.001, 0.0], [0.001, 0.002, 0.0], [0.0, 0.0, 0.001]])
@@ -58,3 +58,15 @@ def test_acceleration_covariance_is_W(seed: int) -> None:
     # Standard error of a covariance entry: sqrt((W_ii W_jj + W_ij²) / n); allow 4 of them.
     tolerance = 4 * np.sqrt((np.outer(np.diag(W), np.diag(W)) + W**2) / n)
     assert np.all(np.abs(sample - W) < tolerance)
+
+
+@pytest.mark.parametrize("batch_size", [1, 3, 8])
+def test_a_batch_step_is_each_run_alone(batch_size: int) -> None:
+    """Random batches: outputs and the update of B runs equal B single runs, bit for bit."""
+    rng = np.random.default_rng(batch_size)
+    config = TargetConfig([1.0, 2.0, 2.0], [0.02, 0.1, 0.1], acceleration_covariance=W.tolist())
+    states = [rng.normal(size=(batch_size, 3)), rng.normal(size=(batch_size, 3))]
+    inputs = {"acceleration_noise": rng.normal(size=(batch_size, 3))}
+    assert_batch_equals_runs(
+        lambda B: TargetRandomWalk(config, time_step=T, batch_size=B), inputs, states
+    )
