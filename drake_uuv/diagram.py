@@ -1,11 +1,11 @@
 """The one builder of the closed loop: every system and logger named, every port wired here."""
 
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from pydrake.common import RandomDistribution, RandomGenerator
+from pydrake.common import RandomDistribution
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import (
     Context,
@@ -15,12 +15,7 @@ from pydrake.systems.framework import (
     OutputPort,
     System,
 )
-from pydrake.systems.primitives import (
-    LogVectorOutput,
-    RandomSource,
-    VectorLogSink,
-    ZeroOrderHold,
-)
+from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
 from drake_uuv.attitude import make_attitude_generator
 from drake_uuv.attitude.factory import ATTITUDE_GENERATORS
@@ -31,6 +26,8 @@ from drake_uuv.navigation.factory import NAVIGATIONS
 from drake_uuv.plants import TargetRandomWalk, make_plant
 from drake_uuv.plants.factory import PLANTS
 from drake_uuv.primitives import random_inputs
+from drake_uuv.primitives.batch import batch_size_field, batch_size_of
+from drake_uuv.primitives.run_noise import RunNoise
 from drake_uuv.scenario import Scenario
 from drake_uuv.sensors import DualSonar
 from drake_uuv.signals import Signal, check_contract, logged_signals
@@ -70,45 +67,46 @@ SYSTEM_NAMES = (
     "uuv", "navigation", "target", "sonar", "estimator", "attitude_generator",
     "tracking_controller",
 )  # fmt: skip
-#: The system whose random sources are seeded last (see :func:`make_uuv_diagram`).
-SEEDED_LAST = "navigation"
 
 
 @dataclass
 class UuvDiagram:
     """The built diagram and handles a caller needs: its systems, loggers and signals by name.
 
-    Seed a context with :meth:`set_random_context` (not the diagram's ``SetRandomContext``
-    alone): it also latches each source's first draw into its hold.
+    ``batch_size`` is the number of runs the diagram steps at once (every port and state holds
+    that many runs, row-major by run; :mod:`drake_uuv.primitives.batch`). Seed a context with
+    :meth:`set_random_context`: one seed per run.
     """
 
     diagram: Diagram
     systems: dict[str, System]
     loggers: dict[str, VectorLogSink]
     signals: dict[str, Signal]
-    noise: list[tuple[RandomSource, ZeroOrderHold]]
+    noise: list[RunNoise]
+    batch_size: int = 1
 
-    def set_random_context(self, context: Context, seed: int) -> None:
-        """Seeds every random source from ``seed`` and latches its first draw for step 0.
-
-        A hold samples its source at each tick, which gives step k + 1 its draw; the draw of
-        step 0 is the one the seeding makes, set here.
-        """
-        self.diagram.SetRandomContext(context, RandomGenerator(seed))
-        for source, hold in self.noise:
-            draw = source.get_output_port().Eval(source.GetMyContextFromRoot(context))
-            hold.SetVectorState(hold.GetMyMutableContextFromRoot(context), draw)
+    def set_random_context(self, context: Context, seeds: int | Sequence[int]) -> None:
+        """Gives run i of the batch its seed ``seeds[i]`` (a single int for a batch of one):
+        every noise source then draws run i's numbers from that seed alone
+        (:class:`~drake_uuv.primitives.run_noise.RunNoise`)."""
+        seeds = np.atleast_1d(np.asarray(seeds))
+        for source in self.noise:
+            source.set_seeds(source.GetMyMutableContextFromRoot(context), seeds)
 
 
 def make_systems(
-    scenario: Scenario, systems: Mapping[str, System] | None = None
+    scenario: Scenario, systems: Mapping[str, System] | None = None, *, batch_size: int = 1
 ) -> dict[str, System]:
     """The closed loop's systems by name (:data:`SYSTEM_NAMES`): those of ``systems`` as
-    given, the others built from their part of the scenario (each slot by its factory).
+    given, the others built from their part of the scenario (each slot by its factory), each
+    stepping ``batch_size`` runs.
 
     The wiring across slots is here and in the factories: the sonar's ``m`` and ``Γ``
-    follow the estimator section's noise model, whoever supplies the estimator.
+    follow the estimator section's noise model, whoever supplies the estimator. A given
+    system must step the same batch (its ``batch_size``); one without that attribute runs
+    only alone.
     """
+    B = batch_size_field(batch_size)
     given = dict(systems or {})
     for name, system in given.items():
         if name not in SYSTEM_NAMES:
@@ -117,20 +115,36 @@ def make_systems(
             )
         if not isinstance(system, System):
             raise ValueError(f"systems[{name!r}]: must be a Drake System, got {system!r}")
+        runs = batch_size_of(system)
+        if (runs or 1) != B:
+            stepped = "has no batch_size: it steps one run" if runs is None else f"steps {runs}"
+            raise ValueError(
+                f"systems[{name!r}]: {type(system).__name__} {stepped}, but the diagram "
+                f"steps a batch of {B} runs (run it with batch_size=1, run by run)"
+            )
     makers: dict[str, Callable[[], System]] = {
-        "uuv": lambda: make_plant(scenario),
-        "navigation": lambda: make_navigation(scenario),
-        "target": lambda: TargetRandomWalk(scenario.target, time_step=scenario.time_step),
+        "uuv": lambda: make_plant(scenario, batch_size=B),
+        "navigation": lambda: make_navigation(scenario, batch_size=B),
+        "target": lambda: TargetRandomWalk(
+            scenario.target, time_step=scenario.time_step, batch_size=B
+        ),
         "sonar": lambda: DualSonar(
             scenario.sonar,
             noise_model=scenario.estimator.noise_model,
             time_step=scenario.time_step,
+            **({} if B == 1 else {"batch_size": B}),  # TRANSITIONAL
         ),
-        "estimator": lambda: make_estimator(scenario),
-        "attitude_generator": lambda: make_attitude_generator(scenario),
-        "tracking_controller": lambda: make_tracking_controller(scenario),
+        "estimator": lambda: make_estimator(scenario, batch_size=B),
+        "attitude_generator": lambda: make_attitude_generator(scenario, batch_size=B),
+        "tracking_controller": lambda: make_tracking_controller(scenario, batch_size=B),
     }
     return {name: given[name] if name in given else makers[name]() for name in SYSTEM_NAMES}
+
+
+def batch_incapable(scenario: Scenario, systems: Mapping[str, System] | None = None) -> list[str]:
+    """The names of the given ``systems`` that cannot step a batch (no ``batch_size``): a
+    study with them runs run by run. The scenario's own systems all can."""
+    return [name for name, system in (systems or {}).items() if batch_size_of(system) is None]
 
 
 def make_uuv_diagram(
@@ -140,23 +154,26 @@ def make_uuv_diagram(
     meshcat: Meshcat | None = None,
     log: bool | Collection[str] = True,
     systems: Mapping[str, System] | None = None,
+    batch_size: int = 1,
 ) -> UuvDiagram:
     """Builds the paper's closed loop from a validated scenario.
 
     Systems: ``uuv`` (the plant slot's variant), ``navigation``, ``target``, ``sonar``,
     ``estimator``, ``attitude_generator`` and ``tracking_controller`` (the other slots). Each
     input port is connected to the output port of the same name (the names are
-    :data:`drake_uuv.signals.SIGNALS`); each random input port gets a named, seeded
-    ``RandomSource`` (named like the port) followed by a ``ZeroOrderHold`` (``<name>_hold``)
-    so that publishes and updates of one step see the same draw: Drake's ``RandomSource`` draws
-    its next sample in an *unrestricted* update, which the Simulator runs before the same
-    tick's discrete updates, so a system reading the source directly would see draw n at the
-    tick's publish (the loggers) and draw n + 1 in its discrete updates (the plant, the
-    filter), and the log would not hold the measurement the filter used. The sources of
-    :data:`SEEDED_LAST` (the navigation) are added after all others, so a seed's other draws
-    do not depend on the navigation's variant. Loggers are ``log_<name>`` for each logged
-    signal, sampled once per step so column k holds the value at step k, before that step's
-    update.
+    :data:`drake_uuv.signals.SIGNALS`); each random input port gets a named
+    :class:`~drake_uuv.primitives.run_noise.RunNoise` source (named like the port) whose run
+    i draws from run i's seed: a pure function of the seed, the source's name and the step, so
+    the publish and the updates of one tick see the same draw, and a run's draws do not depend
+    on its batch, on the other sources or on the navigation's variant. (Drake's
+    ``RandomSource`` draws one stream for its whole vector, so a run's noise would depend on
+    its place in the batch.) Loggers are ``log_<name>`` for each logged signal, sampled once
+    per step so column k holds the value at step k, before that step's update.
+
+    ``batch_size`` B builds every system of the loop for B runs at once (their ports and
+    states hold B runs row-major): the whole study in one diagram. A system of yours in
+    ``systems`` must then step B runs too (its ``batch_size``); one without ``batch_size``
+    runs only with B = 1, and a larger B is refused naming it.
 
     ``systems`` maps names of the loop's systems (:data:`SYSTEM_NAMES`) to systems of your
     own, used instead of the scenario's: e.g. ``systems={"estimator": MyEstimator()}`` with
@@ -170,14 +187,17 @@ def make_uuv_diagram(
     produces, is refused with a one-line ``ValueError`` naming the system and the port.
     """
     t = scenario.time_step
+    B = batch_size_field(batch_size)
     builder = builder or DiagramBuilder()
     given = set(systems or {})
-    systems = make_systems(scenario, systems)
+    systems = make_systems(scenario, systems, batch_size=B)
     for name, system in systems.items():
-        check_contract(name, system, _origin(scenario, name, system, name in given))
+        check_contract(name, system, _origin(scenario, name, system, name in given), B)
         builder.AddNamedSystem(name, system)
     readers = dict(systems)
     if meshcat is not None:
+        if B != 1:
+            raise ValueError(f"meshcat: draws one run, got a batch of {B}")
         visualizer = LiveMeshcatVisualizer(
             meshcat, baseline_B=np.asarray(scenario.sonar.baseline), publish_period=t
         )
@@ -185,15 +205,12 @@ def make_uuv_diagram(
 
     producers = _producers(systems)
     noise = []
-    # Drake seeds the sources in the order they are added, each from the same generator: the
-    # navigation's come last so that a seed gives the target, the sonars and the attitude the
-    # same draws whatever the navigation (its cost is measured on the same run).
-    for name, system in sorted(readers.items(), key=lambda item: item[0] == SEEDED_LAST):
+    for name, system in readers.items():
         random = random_inputs(system)
         for i in range(system.num_input_ports()):
             port = system.get_input_port(i)
             if port.get_name() in random:
-                noise.append(_add_noise(builder, port, random[port.get_name()], t))
+                noise.append(_add_noise(builder, port, random[port.get_name()], t, B))
             elif port.get_name() in producers:
                 builder.Connect(producers[port.get_name()], port)
             else:
@@ -212,7 +229,7 @@ def make_uuv_diagram(
 
     diagram = builder.Build()
     diagram.set_name("uuv_closed_loop")
-    return UuvDiagram(diagram, systems, loggers, signals, noise)
+    return UuvDiagram(diagram, systems, loggers, signals, noise, B)
 
 
 def _chosen_signals(systems: dict[str, System], log: bool | Collection[str]) -> list[Signal]:
@@ -251,12 +268,16 @@ def _producers(systems: dict[str, System]) -> dict[str, OutputPort]:
 
 
 def _add_noise(
-    builder: DiagramBuilder, port: InputPort, distribution: RandomDistribution, time_step: float
-) -> tuple[RandomSource, ZeroOrderHold]:
-    """A ``RandomSource`` of the port's distribution, sampled once per step and held."""
+    builder: DiagramBuilder,
+    port: InputPort,
+    distribution: RandomDistribution,
+    time_step: float,
+    batch_size: int,
+) -> RunNoise:
+    """The port's per-run noise: a :class:`RunNoise` named like the port."""
     name = port.get_name()
-    source = builder.AddNamedSystem(name, RandomSource(distribution, port.size(), time_step))
-    hold = builder.AddNamedSystem(f"{name}_hold", ZeroOrderHold(time_step, port.size()))
-    builder.Connect(source.get_output_port(), hold.get_input_port())
-    builder.Connect(hold.get_output_port(), port)
-    return source, hold
+    size = port.size() // batch_size
+    source = RunNoise(name, distribution, size, batch_size=batch_size, time_step=time_step)
+    builder.AddNamedSystem(name, source)
+    builder.Connect(source.get_output_port(), port)
+    return source

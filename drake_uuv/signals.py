@@ -95,9 +95,10 @@ def logged_signals(systems: dict[str, System]) -> list[Signal]:
     return signals
 
 
-def check_contract(name: str, system: System, variant: str) -> None:
+def check_contract(name: str, system: System, variant: str, batch_size: int = 1) -> None:
     """Raises ``ValueError`` if ``system`` (named ``name`` in the diagram, built for the
-    variant ``variant``) lacks an output the table assigns to it, or has the wrong size."""
+    variant ``variant``) lacks an output the table assigns to it, or has the wrong size: a
+    signal's size per run times ``batch_size``, the runs the system steps at once."""
     for signal in SIGNALS:
         if signal.system != name:
             continue
@@ -106,8 +107,9 @@ def check_contract(name: str, system: System, variant: str) -> None:
                 f"{name} ({variant}): has no output port {signal.name!r} ({signal.meaning})"
             )
         size = system.GetOutputPort(signal.name).size()
-        if signal.size > 0 and size != signal.size:
+        if signal.size > 0 and size != signal.size * batch_size:
+            runs = "" if batch_size == 1 else f" ({signal.size} for each of {batch_size} runs)"
             raise ValueError(
                 f"{name} ({variant}): output port {signal.name!r} has size {size}, "
-                f"expected {signal.size}"
+                f"expected {signal.size * batch_size}{runs}"
             )

@@ -3,7 +3,7 @@
 import dataclasses
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -44,13 +44,38 @@ class SimulationResult:
         write_json_atomic(out_dir / "metrics.json", {**self.metrics, "warnings": warnings})
 
 
-def log_from_loggers(built: UuvDiagram, context: Context, steps: int) -> dict[str, np.ndarray]:
-    """The loggers' columns as the named per-step arrays of ``log.npz``.
+@dataclass
+class BatchResult:
+    """A batch of runs: their seeds, their log (each signal ``(B, N, *shape)``; ``k`` and
+    ``time`` ``(N,)``), their metrics (each ``(B,)``, NaN for a failed run) and each run's
+    failure (None for a run that finished)."""
 
-    One array per logged signal (:mod:`drake_uuv.signals`), keyed by its name, row k the
-    value at step k shaped as the signal's ``shape`` (scalars as a vector of N), plus ``k``
-    and ``time``.
+    scenario: Scenario
+    seeds: np.ndarray
+    log: dict[str, np.ndarray]
+    metrics: dict[str, np.ndarray]
+    failures: list[str | None]
+
+    @property
+    def failed(self) -> np.ndarray:
+        """A (B,) mask of the runs the estimator-health monitor stopped."""
+        return np.array([f is not None for f in self.failures], dtype=bool)
+
+    def run_log(self, i: int) -> dict[str, np.ndarray]:
+        """Run i's own log, as a single run's ``log.npz`` holds it."""
+        return {
+            name: value if name in ("k", "time") else value[i] for name, value in self.log.items()
+        }
+
+
+def log_from_loggers(built: UuvDiagram, context: Context, steps: int) -> dict[str, np.ndarray]:
+    """The loggers' columns as the named per-step arrays of a batch's log.
+
+    One array per logged signal (:mod:`drake_uuv.signals`), keyed by its name, shaped
+    ``(B, N, *shape)``: run i's row k the value at step k shaped as the signal's ``shape``
+    (scalars as ``(B, N)``), plus ``k`` and ``time`` ``(N,)``.
     """
+    B = built.batch_size
     log: dict[str, np.ndarray] = {"k": np.arange(steps)}
     for name, logger in built.loggers.items():
         found = logger.FindLog(context)
@@ -59,7 +84,7 @@ def log_from_loggers(built: UuvDiagram, context: Context, steps: int) -> dict[st
         signal = built.signals[name]
         data = found.data().T[:steps]
         shape = signal.shape if all(n > 0 for n in signal.shape) else (-1,)
-        data = data.reshape(len(data), *shape).copy()
+        data = np.moveaxis(data.reshape(len(data), B, *shape), 1, 0).copy()
         log[name] = data.astype(np.int8) if signal.integer else data
     return log
 
@@ -89,6 +114,11 @@ class ClosedLoopSimulation:
     With ``meshcat``, a live visualiser draws the scene while it simulates (see
     :class:`~drake_uuv.visualization.live_visualizer.LiveMeshcatVisualizer`).
 
+    ``batch_size`` B builds the loop for B runs at once (:meth:`run_batch`): every system
+    steps all of them, each run drawing its noise from its own seed, so run i of a batch is
+    bit for bit the run of its seed alone. A run the monitor stops is marked and no longer
+    watched; the batch's other runs go on.
+
     ``systems`` replaces systems of the loop with your own, by name (see
     :func:`~drake_uuv.diagram.make_uuv_diagram`). ``log="full"`` (the default) logs every
     signal of ``log.npz``; ``log="metrics"`` only those the metrics, the warnings and a
@@ -109,14 +139,21 @@ class ClosedLoopSimulation:
         meshcat: Meshcat | None = None,
         systems: Mapping[str, System] | None = None,
         log: str = "full",
+        batch_size: int = 1,
     ) -> None:
         if log not in LOGS:
             raise ValueError(f"log: must be one of {', '.join(LOGS)}, got {log!r}")
         self.scenario = scenario
         logged = True if log == "full" else metric_signals(scenario)
-        self.built = make_uuv_diagram(scenario, meshcat=meshcat, systems=systems, log=logged)
+        self.built = make_uuv_diagram(
+            scenario, meshcat=meshcat, systems=systems, log=logged, batch_size=batch_size
+        )
+        self.batch_size = self.built.batch_size
+        self._stopped: RuntimeError | None = None  # the Simulator's error when all runs failed
         self.diagram = self.built.diagram
-        self.monitor = EstimatorHealthMonitor(self.built.systems["estimator"], scenario.time_step)
+        self.monitor = EstimatorHealthMonitor(
+            self.built.systems["estimator"], scenario.time_step, batch_size=self.batch_size
+        )
         gain = getattr(self.built.systems["tracking_controller"], "gain", None)
         # The same for every run: the tracking law's closed loop on the relative model.
         self.tracking_spectral_radius = (
@@ -126,51 +163,104 @@ class ClosedLoopSimulation:
         )
 
     def run(self, seed: int | None = None, realtime_rate: float = 0.0) -> SimulationResult:
-        """One run with ``seed`` (default: the scenario's ``random_seed``).
+        """One run with ``seed`` (default: the scenario's ``random_seed``), on a diagram of
+        ``batch_size`` 1: a batch of one (:meth:`run_batch`). A run the monitor stops raises
+        :class:`~drake_uuv.monitor.SimulationFailure` naming the check and the step.
 
         ``realtime_rate`` > 0 paces the simulation (for a live Meshcat view).
         """
+        if self.batch_size != 1:
+            raise ValueError(
+                f"run: this simulation steps {self.batch_size} runs at once; use run_batch"
+            )
+        seed = self.scenario.random_seed if seed is None else seed
         start = time.perf_counter()
+        batch = self.run_batch([seed], realtime_rate=realtime_rate)
+        if batch.failures[0] is not None:
+            raise SimulationFailure(f"seed {seed}: run stopped: {batch.failures[0]}") from (
+                self._stopped
+            )
+        metrics = {name: float(value[0]) for name, value in batch.metrics.items()}
+        log = batch.run_log(0)
+        metrics.update(wall_time_s=time.perf_counter() - start)
+        warnings = run_warnings(log, metrics, batch.scenario)
+        return SimulationResult(
+            scenario=batch.scenario, log=log, metrics=metrics, warnings=warnings
+        )
+
+    def run_batch(self, seeds: Sequence[int], realtime_rate: float = 0.0) -> BatchResult:
+        """The runs of ``seeds`` (one per run of the batch, ``batch_size`` of them) at once.
+
+        Run i draws its noise from ``seeds[i]`` alone. A run the monitor stops keeps its
+        record in ``failures`` and NaN metrics; the others go on. An error inside a system
+        (not the monitor's finding) stops the whole batch and is raised.
+        """
+        seeds = np.asarray(seeds, dtype=np.int64).reshape(-1)
+        if len(seeds) != self.batch_size:
+            raise ValueError(
+                f"seeds: must be {self.batch_size} seeds (one per run of the batch), "
+                f"got {len(seeds)}"
+            )
         scenario = self.scenario
-        if seed is not None and seed != scenario.random_seed:
-            scenario = dataclasses.replace(scenario, random_seed=seed)
+        if self.batch_size == 1 and seeds[0] != scenario.random_seed:
+            scenario = dataclasses.replace(scenario, random_seed=int(seeds[0]))
         simulator = Simulator(self.diagram)
         configure = getattr(self.built.systems["uuv"], "configure_simulator", None)
         if configure is not None:
             configure(simulator)
         simulator.set_target_realtime_rate(realtime_rate)
         context = simulator.get_mutable_context()
-        self.built.set_random_context(context, scenario.random_seed)
+        self.built.set_random_context(context, seeds)
         self.monitor.reset()
+        self._stopped = None
         simulator.set_monitor(self.monitor)
         try:
             simulator.Initialize()
             simulator.AdvanceTo((scenario.steps - 1) * scenario.time_step)
         except RuntimeError as e:
-            if self.monitor.failure is None:
+            if self.monitor.failure is None or self.monitor.failed.sum() < self.batch_size:
                 raise
-            raise SimulationFailure(
-                f"seed {scenario.random_seed}: run stopped: {self.monitor.failure}"
-            ) from e
+            self._stopped = e  # every run failed: the monitor stopped the Simulator
         except np.linalg.LinAlgError as e:
             # A factorisation inside a system's update (a UKF's sigma points, a Kalman gain)
             # failed before the monitor saw the step: the estimate had already broken down.
+            if self.batch_size != 1:
+                raise
             step = round(context.get_time() / scenario.time_step)
             raise SimulationFailure(
-                f"seed {scenario.random_seed}: run stopped: a covariance or innovation matrix "
+                f"seed {seeds[0]}: run stopped: a covariance or innovation matrix "
                 f"could not be factorised ({e}) in the update after step k={step} "
                 f"(t={context.get_time():g} s)"
             ) from e
         log = log_from_loggers(self.built, context, scenario.steps)
-        metrics = run_metrics(log, scenario)
+        failures = list(self.monitor.failures)
+        metrics = _batch_metrics(log, scenario, seeds, failures)
         metrics.update(
-            tracking_spectral_radius=self.tracking_spectral_radius,
-            steps=scenario.steps,
-            seed=scenario.random_seed,
-            wall_time_s=time.perf_counter() - start,
+            tracking_spectral_radius=np.full(len(seeds), self.tracking_spectral_radius),
+            steps=np.full(len(seeds), scenario.steps),
+            seed=seeds.astype(float),
         )
-        warnings = run_warnings(log, metrics, scenario)
-        return SimulationResult(scenario=scenario, log=log, metrics=metrics, warnings=warnings)
+        return BatchResult(scenario, seeds, log, metrics, failures)
+
+
+def _batch_metrics(
+    log: dict[str, np.ndarray],
+    scenario: Scenario,
+    seeds: np.ndarray,
+    failures: list[str | None],
+) -> dict[str, np.ndarray]:
+    """Each run's metrics as (B,) arrays, NaN for a failed run."""
+    names: list[str] = []
+    rows: list[dict[str, float]] = []
+    for i, seed in enumerate(seeds):
+        if failures[i] is not None:
+            rows.append({})
+            continue
+        run_log = {n: v if n in ("k", "time") else v[i] for n, v in log.items()}
+        row = run_metrics(run_log, dataclasses.replace(scenario, random_seed=int(seed)))
+        names = names or list(row)
+        rows.append(row)
+    return {name: np.array([row.get(name, math.nan) for row in rows]) for name in names}
 
 
 def simulate(scenario: Scenario) -> SimulationResult:

@@ -44,7 +44,11 @@ def attitude_setting(scenario: Scenario) -> AttitudeSetting:
     )
 
 
-def make_attitude_generator(scenario: Scenario) -> LeafSystem:
+def make_attitude_generator(scenario: Scenario, *, batch_size: int = 1) -> LeafSystem:
     """The attitude generator of ``scenario.attitude``'s variant."""
     cls = variant_system(ATTITUDE_GENERATORS, scenario.attitude, "attitude")
-    return cls(scenario.attitude, setting=attitude_setting(scenario))
+    return cls(scenario.attitude, setting=attitude_setting(scenario), **_TRANSITIONAL(batch_size))
+
+
+def _TRANSITIONAL(batch_size: int) -> dict:  # TRANSITIONAL until the slot's systems batch
+    return {} if batch_size == 1 else {"batch_size": batch_size}

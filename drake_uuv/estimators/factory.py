@@ -37,7 +37,11 @@ def estimator_setting(scenario: Scenario) -> EstimatorSetting:
     )
 
 
-def make_estimator(scenario: Scenario) -> RelativeStateEstimator:
+def make_estimator(scenario: Scenario, *, batch_size: int = 1) -> RelativeStateEstimator:
     """The estimator of ``scenario.estimator``'s variant."""
     cls = variant_system(ESTIMATORS, scenario.estimator, "estimator")
-    return cls(scenario.estimator, setting=estimator_setting(scenario))
+    return cls(scenario.estimator, setting=estimator_setting(scenario), **_TRANSITIONAL(batch_size))
+
+
+def _TRANSITIONAL(batch_size: int) -> dict:  # TRANSITIONAL until the slot's systems batch
+    return {} if batch_size == 1 else {"batch_size": batch_size}

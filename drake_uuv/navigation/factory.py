@@ -21,7 +21,11 @@ def navigation_setting(scenario: Scenario) -> NavigationSetting:
     return NavigationSetting.of(scenario.time_step, scenario.uuv)
 
 
-def make_navigation(scenario: Scenario) -> System:
+def make_navigation(scenario: Scenario, *, batch_size: int = 1) -> System:
     """The navigation of ``scenario.navigation``'s variant."""
     cls = variant_system(NAVIGATIONS, scenario.navigation, "navigation")
-    return cls(scenario.navigation, setting=navigation_setting(scenario))
+    return cls(scenario.navigation, setting=navigation_setting(scenario), **_TRANSITIONAL(batch_size))
+
+
+def _TRANSITIONAL(batch_size: int) -> dict:  # TRANSITIONAL until the slot's systems batch
+    return {} if batch_size == 1 else {"batch_size": batch_size}

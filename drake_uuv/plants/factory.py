@@ -20,7 +20,11 @@ def plant_setting(scenario: Scenario) -> PlantSetting:
     return PlantSetting.of(scenario.time_step, scenario.uuv)
 
 
-def make_plant(scenario: Scenario) -> System:
+def make_plant(scenario: Scenario, *, batch_size: int = 1) -> System:
     """The vehicle of ``scenario.plant``'s variant, at ``scenario.uuv``'s initial state."""
     cls = variant_system(PLANTS, scenario.plant, "plant")
-    return cls(scenario.plant, setting=plant_setting(scenario))
+    return cls(scenario.plant, setting=plant_setting(scenario), **_TRANSITIONAL(batch_size))
+
+
+def _TRANSITIONAL(batch_size: int) -> dict:  # TRANSITIONAL until the slot's systems batch
+    return {} if batch_size == 1 else {"batch_size": batch_size}

@@ -20,7 +20,11 @@ def tracking_setting(scenario: Scenario) -> TrackingSetting:
     return TrackingSetting(time_step=scenario.time_step)
 
 
-def make_tracking_controller(scenario: Scenario) -> LeafSystem:
+def make_tracking_controller(scenario: Scenario, *, batch_size: int = 1) -> LeafSystem:
     """The tracking controller of ``scenario.tracking``'s variant."""
     cls = variant_system(TRACKING_CONTROLLERS, scenario.tracking, "tracking")
-    return cls(scenario.tracking, setting=tracking_setting(scenario))
+    return cls(scenario.tracking, setting=tracking_setting(scenario), **_TRANSITIONAL(batch_size))
+
+
+def _TRANSITIONAL(batch_size: int) -> dict:  # TRANSITIONAL until the slot's systems batch
+    return {} if batch_size == 1 else {"batch_size": batch_size}

@@ -10,6 +10,7 @@ from pydrake.systems.framework import LeafSystem
 from drake_uuv.diagram import SLOT_REGISTRY, SYSTEM_NAMES, make_uuv_diagram
 from drake_uuv.models.tracking_laws import paper_tracking_command
 from drake_uuv.plants.factory import PLANTS
+from drake_uuv.primitives.run_noise import RunNoise, run_draws
 from drake_uuv.scenario import SLOTS, KinematicUuv, Scenario, load_scenario, variants
 from drake_uuv.signals import SIGNALS, check_contract
 from drake_uuv.simulation import ClosedLoopSimulation
@@ -26,8 +27,9 @@ def test_names_systems_sources_and_loggers(paper) -> None:
         "tracking_controller",
     ]  # fmt: skip
     assert list(built.systems) == slots
-    for name in [*slots, "acceleration_noise", "acceleration_noise_hold", "range_noise"]:
+    for name in [*slots, "acceleration_noise", "range_noise"]:
         assert diagram.HasSubsystemNamed(name), name
+    assert isinstance(diagram.GetSubsystemByName("range_noise"), RunNoise)
     logged = [s.name for s in SIGNALS if s.logged]
     assert sorted(built.loggers) == sorted(logged)
     for name in logged:
@@ -112,21 +114,25 @@ def test_contract_sizes_are_checked() -> None:
 def test_random_ports_of_a_variant_get_their_own_source() -> None:
     built = make_uuv_diagram(load_scenario("paper", ["attitude=!RandomAttitude"]))
     assert built.diagram.HasSubsystemNamed("rotation_noise")
-    assert built.diagram.HasSubsystemNamed("rotation_noise_hold")
 
 
-def test_set_random_context_latches_the_first_draw_and_reproduces_a_run(paper) -> None:
-    """Step 0's noise is the seeded first draw (not the hold's zero), and a seed fixes it."""
+def test_set_random_context_fixes_each_draw_by_seed_source_and_step(paper) -> None:
+    """A seed fixes every draw: step 0's noise is the seed's (not zero), the same seed gives
+    the same numbers, another seed others, and each is ``run_draws`` of (seed, source, step)."""
     built = make_uuv_diagram(paper)
     context = built.diagram.CreateDefaultContext()
+    source = built.diagram.GetSubsystemByName("range_noise")
     draws = []
     for seed in (5, 5, 6):
         built.set_random_context(context, seed)
-        hold = built.diagram.GetSubsystemByName("range_noise_hold")
-        draws.append(hold.get_output_port().Eval(hold.GetMyContextFromRoot(context)).copy())
+        draws.append(source.get_output_port().Eval(source.GetMyContextFromRoot(context)).copy())
     assert np.all(draws[0] != 0.0)
     np.testing.assert_array_equal(draws[0], draws[1])
     assert not np.array_equal(draws[0], draws[2])
+    np.testing.assert_array_equal(draws[2], run_draws([6], "range_noise", 0, 2)[0])
+    context.SetTime(3 * paper.time_step)
+    step_3 = source.get_output_port().Eval(source.GetMyContextFromRoot(context))
+    np.testing.assert_array_equal(step_3, run_draws([6], "range_noise", 3, 2)[0])
 
 
 def test_a_variant_missing_from_its_factory_is_named(paper, monkeypatch) -> None:

@@ -46,7 +46,7 @@ def broken(monkeypatch):
     def use(how: str, at: int) -> None:
         # The builder's estimator, for runs that take no systems (the command line).
         monkeypatch.setattr(
-            "drake_uuv.diagram.make_estimator", lambda scenario: BrokenEstimator(how, at)
+            "drake_uuv.diagram.make_estimator", lambda scenario, **_: BrokenEstimator(how, at)
         )
 
     return use
