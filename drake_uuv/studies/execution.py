@@ -40,10 +40,11 @@ Task = tuple[int, Scenario, list[int]]
 OnDone = Callable[[int, dict[str, Any]], None]
 
 _PR_SET_PDEATHSIG = 1  # <sys/prctl.h>
-# Automatic chunk size: about four chunks per worker slot (load balance), at most this many
-# seeds (little lost on interruption), at least one.
-_CHUNKS_PER_SLOT = 4
-_MAX_CHUNK = 25
+# Automatic chunk size: about two chunks per worker slot (load balance), at most this many
+# seeds (little lost on interruption, and a worker runs a chunk as batches of runs), at least
+# one.
+_CHUNKS_PER_SLOT = 2
+_MAX_CHUNK = 250
 
 
 def default_workers() -> int:

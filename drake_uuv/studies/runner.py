@@ -1,9 +1,12 @@
 """Running seeds of a scenario in one process: metrics, error norms, information sums.
 
-A worker (a local process, a thread of a Dask worker, or the caller itself) builds the
-closed-loop diagram once per thread and scenario (:func:`cached_simulation`) and returns for
-each run only its metrics and four per-step error norms (:data:`NORMS`, float32), never the
-log, so a chunk of runs is small enough to send back and write at once.
+A worker (a local process, a thread of a Dask worker, or the caller itself) runs its seeds as
+batches: one closed-loop diagram stepping a batch of runs at once, built once per thread,
+scenario and batch size (:func:`cached_simulation`). Each run draws its noise from its own
+seed, so a run's numbers do not depend on the batch, the chunking or the worker. A batch is as
+large as the chunk, up to :func:`max_batch_size` (its log, which the metrics read, is held in
+memory). For each run it returns only its metrics and four per-step error norms (:data:`NORMS`,
+float32), never the log, so a chunk of runs is small enough to send back and write at once.
 
 The Monte Carlo PCRLB needs the measurement information ``M(k)`` averaged over runs. A chunk
 returns the *sum* over its runs of the position block (steps × 3 × 3) in fixed point
@@ -12,6 +15,7 @@ associative, so the total, and the bound, are the same whatever the chunking, th
 the number of workers.
 """
 
+import dataclasses
 import json
 import math
 import threading
@@ -21,9 +25,11 @@ from typing import Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from drake_uuv.metrics import errors, run_information
+from drake_uuv.diagnostics import run_warnings
+from drake_uuv.metrics import errors, metric_signals, run_information
 from drake_uuv.monitor import SimulationFailure
 from drake_uuv.scenario import Scenario, scenario_as_dict
+from drake_uuv.signals import SIGNAL_BY_NAME
 from drake_uuv.simulation import ClosedLoopSimulation
 
 # Rows of the per-step error-norm array a worker returns for each run.
@@ -41,8 +47,9 @@ def scenario_key(scenario: Scenario) -> str:
     return json.dumps(scenario_as_dict(scenario), sort_keys=True)
 
 
-def cached_simulation(scenario: Scenario) -> ClosedLoopSimulation:
-    """The closed-loop simulation of ``scenario``, built once per thread of each process.
+def cached_simulation(scenario: Scenario, batch_size: int = 1) -> ClosedLoopSimulation:
+    """The closed-loop simulation of ``scenario`` stepping ``batch_size`` runs, built once per
+    thread of each process.
 
     Per thread because a Drake ``Simulator`` and its context are not safe to share between
     threads (a Dask worker runs several tasks at once in threads).
@@ -50,12 +57,31 @@ def cached_simulation(scenario: Scenario) -> ClosedLoopSimulation:
     cache = getattr(_local, "simulations", None)
     if cache is None:
         cache = _local.simulations = {}
-    key = scenario_key(scenario)
+    key = (scenario_key(scenario), batch_size)
     if key not in cache:
         if len(cache) >= _CACHE_SIZE:
             cache.clear()
-        cache[key] = ClosedLoopSimulation(scenario, log="metrics")
+        cache[key] = ClosedLoopSimulation(scenario, log="metrics", batch_size=batch_size)
     return cache[key]
+
+
+#: The memory a batch's log may take [bytes]: the logged signals of every run and step.
+BATCH_LOG_BYTES = 256 * 2**20
+#: The most runs in one batch: beyond a few hundred, numpy's cost per run no longer falls.
+MAX_BATCH = 500
+
+
+def max_batch_size(scenario: Scenario) -> int:
+    """The most runs one batch of ``scenario`` steps: its log (the signals the metrics read,
+    every step) within :data:`BATCH_LOG_BYTES`, and a system's own estimate of its memory a
+    run (a particle filter's ``bytes_per_run``) within the same budget."""
+    # A signal a system declares of its own (a vehicle's thrusts) is counted as 16 numbers.
+    logged = sum(
+        SIGNAL_BY_NAME[name].size if name in SIGNAL_BY_NAME else 16
+        for name in metric_signals(scenario)
+    )
+    per_run = 8 * logged * scenario.steps + _state_bytes_per_run(scenario)
+    return max(1, min(MAX_BATCH, BATCH_LOG_BYTES // max(per_run, 1)))
 
 
 def information_exponent(scenario: Scenario) -> int:
@@ -82,53 +108,38 @@ def run_seeds(scenario: Scenario, seeds: Sequence[int]) -> dict[str, Any]:
     of :func:`drake_uuv.metrics.run_information` in units of ``2^-e``
     (:func:`information_exponent`); None if any entry is not finite or a run failed.
     """
-    simulation = cached_simulation(scenario)
     # One BLAS thread per worker: a run's matrices are small (6×6, at most 6×N particles),
     # and two workers each spawning a thread per core slowed a particle filter 30-fold.
     blas = threadpool_limits(limits=1, user_api="blas")
-    start = scenario.steady_state_start
     rows: list[dict[str, float]] = []
     norms = []
     exponent = information_exponent(scenario)
     information: np.ndarray | None = np.zeros((scenario.steps, 3, 3), dtype=np.int64)
+    size = max_batch_size(scenario)
+    seeds = [int(seed) for seed in seeds]
     with blas, np.errstate(all="ignore"):
-        for seed in seeds:
-            try:
-                result = simulation.run(int(seed))
-            except SimulationFailure:  # a broken estimator: a failed (and diverged) run
-                rows.append({"failed": 1.0})
-                norms.append(np.full((len(NORMS), scenario.steps), np.nan, dtype=np.float32))
-                information = None
-                continue
-            except Exception as e:
-                raise RuntimeError(f"run with seed {seed} failed: {e}") from e
-            e = errors(result.log, result.scenario)
-            tracking = np.linalg.norm(e["tracking"], axis=1)
-            metrics = {
-                key: float(value)
-                for key, value in result.metrics.items()
-                if key not in _DROPPED_METRICS
-            }
-            metrics["max_tracking_error"] = float(np.max(tracking[start:]))
-            metrics["final_tracking_error"] = float(tracking[-1])
-            metrics["failed"] = 0.0
-            metrics["warnings"] = float(len(result.warnings))
-            rows.append(metrics)
-            norms.append(
-                np.stack(
-                    [
-                        np.linalg.norm(e["position"], axis=1),
-                        np.linalg.norm(e["velocity"], axis=1),
-                        tracking,
-                        e["nees"],
-                    ]
-                ).astype(np.float32)
-            )
-            M = run_information(result.log, result.scenario)[:, :3, :3]
-            if information is not None and np.all(np.isfinite(M)):
-                information += np.rint(np.ldexp(M, exponent)).astype(np.int64)
-            else:
-                information = None
+        for first in range(0, len(seeds), size):
+            batch = _run_batch(scenario, seeds[first : first + size])
+            for result in batch:
+                if result is None:  # a broken estimator: a failed (and diverged) run
+                    rows.append({"failed": 1.0})
+                    norms.append(np.full((len(NORMS), scenario.steps), np.nan, dtype=np.float32))
+                    information = None
+                    continue
+                log, metrics, warnings = result
+                run_norms, M = _run_summary(log, scenario)
+                metrics["max_tracking_error"] = float(
+                    np.max(run_norms[2, scenario.steady_state_start :])
+                )
+                metrics["final_tracking_error"] = float(run_norms[2, -1])
+                metrics["failed"] = 0.0
+                metrics["warnings"] = float(warnings)
+                rows.append(metrics)
+                norms.append(run_norms.astype(np.float32))
+                if information is not None and np.all(np.isfinite(M)):
+                    information += np.rint(np.ldexp(M, exponent)).astype(np.int64)
+                else:
+                    information = None
     names = canonical_metric_names([list(row) for row in rows])
     return {
         "seeds": np.asarray(seeds, dtype=np.int64),
@@ -137,6 +148,71 @@ def run_seeds(scenario: Scenario, seeds: Sequence[int]) -> dict[str, Any]:
         "norms": np.asarray(norms, dtype=np.float32),
         "information_sum": information,
     }
+
+
+def _run_batch(
+    scenario: Scenario, seeds: list[int]
+) -> list[tuple[dict[str, np.ndarray], dict[str, float], int] | None]:
+    """Each seed's run: its log, its metrics and its number of warnings (None: failed).
+
+    The seeds run as one batch; should a system raise inside it (not the monitor's
+    finding), they run again one by one, each as it would alone, so the error is the
+    failing run's and the others still count."""
+    try:
+        batch = cached_simulation(scenario, len(seeds)).run_batch(seeds)
+    except Exception:
+        if len(seeds) == 1:
+            return [_run_alone(scenario, seeds[0])]
+        return [_run_alone(scenario, seed) for seed in seeds]
+    results = []
+    for i, seed in enumerate(seeds):
+        if batch.failures[i] is not None:
+            results.append(None)
+            continue
+        metrics = {
+            key: float(value[i])
+            for key, value in batch.metrics.items()
+            if key not in _DROPPED_METRICS
+        }
+        log = batch.run_log(i)
+        run_scenario = dataclasses.replace(scenario, random_seed=seed)
+        warnings = run_warnings(log, {**metrics, "seed": seed}, run_scenario)
+        results.append((log, metrics, len(warnings)))
+    return results
+
+
+def _run_alone(
+    scenario: Scenario, seed: int
+) -> tuple[dict[str, np.ndarray], dict[str, float], int] | None:
+    try:
+        result = cached_simulation(scenario, 1).run(seed)
+    except SimulationFailure:
+        return None
+    except Exception as e:
+        raise RuntimeError(f"run with seed {seed} failed: {e}") from e
+    metrics = {k: float(v) for k, v in result.metrics.items() if k not in _DROPPED_METRICS}
+    return result.log, metrics, len(result.warnings)
+
+
+def _run_summary(log: dict[str, np.ndarray], scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """A run's error norms (:data:`NORMS` × steps) and its information's position block."""
+    e = errors(log, scenario)
+    run_norms = np.stack(
+        [
+            np.linalg.norm(e["position"], axis=1),
+            np.linalg.norm(e["velocity"], axis=1),
+            np.linalg.norm(e["tracking"], axis=1),
+            e["nees"],
+        ]
+    )
+    return run_norms, run_information(log, scenario)[:, :3, :3]
+
+
+def _state_bytes_per_run(scenario: Scenario) -> int:
+    """What a run's systems hold beyond the log (a particle cloud), as the estimator's
+    dataclass states it (``bytes_per_run``), else nothing worth counting."""
+    estimate = getattr(scenario.estimator, "bytes_per_run", None)
+    return int(estimate()) if callable(estimate) else 0
 
 
 def canonical_metric_names(lists: Sequence[list[str]]) -> list[str]:

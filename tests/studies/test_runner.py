@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from drake_uuv.metrics import run_information
-from drake_uuv.monitor import SimulationFailure
 from drake_uuv.scenario import load_scenario
 from drake_uuv.simulation import ClosedLoopSimulation
 from drake_uuv.studies.runner import (
@@ -77,14 +76,17 @@ def test_information_sums_are_exact_integers_whatever_the_chunking(short):
 
 @pytest.mark.slow
 def test_a_run_the_monitor_stops_is_failed_with_nan_metrics_and_no_information(short, monkeypatch):
-    original = ClosedLoopSimulation.run
+    original = ClosedLoopSimulation.run_batch
 
-    def run(self, seed=None, **options):
-        if seed == 1:
-            raise SimulationFailure("run stopped: a test failure")
-        return original(self, seed, **options)
+    def run_batch(self, seeds, **options):
+        """The monitor's record for seed 1, whatever batch it runs in."""
+        result = original(self, seeds, **options)
+        for i, seed in enumerate(result.seeds):
+            if seed == 1:
+                result.failures[i] = "a test failure at step k=3 (t=1.5 s)"
+        return result
 
-    monkeypatch.setattr(ClosedLoopSimulation, "run", run)
+    monkeypatch.setattr(ClosedLoopSimulation, "run_batch", run_batch)
     chunk = run_seeds(short, [0, 1])
     failed = chunk["metric_names"].index("failed")
     np.testing.assert_array_equal(chunk["metrics"][:, failed], [0.0, 1.0])
@@ -98,10 +100,12 @@ def test_a_run_the_monitor_stops_is_failed_with_nan_metrics_and_no_information(s
 
 
 def test_any_other_error_names_the_seed(short, monkeypatch):
-    def run(self, seed=None, **options):
+    """An error inside a batch: its runs go again one by one, and the failing one is named."""
+
+    def run_batch(self, seeds, **options):
         raise ArithmeticError("boom")
 
-    monkeypatch.setattr(ClosedLoopSimulation, "run", run)
+    monkeypatch.setattr(ClosedLoopSimulation, "run_batch", run_batch)
     with pytest.raises(RuntimeError, match=r"^run with seed 7 failed: boom$"):
         run_task((0, short, [7]))
 
