@@ -3,7 +3,7 @@
 import dataclasses
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -188,12 +188,19 @@ class ClosedLoopSimulation:
             scenario=batch.scenario, log=log, metrics=metrics, warnings=warnings
         )
 
-    def run_batch(self, seeds: Sequence[int], realtime_rate: float = 0.0) -> BatchResult:
+    def run_batch(
+        self,
+        seeds: Sequence[int],
+        realtime_rate: float = 0.0,
+        prepare: Callable[[Context], None] | None = None,
+    ) -> BatchResult:
         """The runs of ``seeds`` (one per run of the batch, ``batch_size`` of them) at once.
 
         Run i draws its noise from ``seeds[i]`` alone. A run the monitor stops keeps its
         record in ``failures`` and NaN metrics; the others go on. An error inside a system
-        (not the monitor's finding) stops the whole batch and is raised.
+        (not the monitor's finding) stops the whole batch and is raised. ``prepare(context)``,
+        if given, is called with the root context after seeding and before the Simulator
+        initializes (e.g. to start runs from priors of your own).
         """
         seeds = np.asarray(seeds, dtype=np.int64).reshape(-1)
         if len(seeds) != self.batch_size:
@@ -211,6 +218,8 @@ class ClosedLoopSimulation:
         simulator.set_target_realtime_rate(realtime_rate)
         context = simulator.get_mutable_context()
         self.built.set_random_context(context, seeds)
+        if prepare is not None:
+            prepare(context)
         self.monitor.reset()
         self._stopped = None
         simulator.set_monitor(self.monitor)

@@ -117,7 +117,7 @@ def test_a_seed_draws_the_same_target_and_sonar_noise_whatever_the_navigation() 
         built.set_random_context(context, 4)
         draws.append({
             name: hold.get_output_port().Eval(hold.GetMyContextFromRoot(context)).copy()
-            for name in ("acceleration_noise_hold", "range_noise_hold")
+            for name in ("acceleration_noise", "range_noise")
             for hold in [built.diagram.GetSubsystemByName(name)]
         })  # fmt: skip
     for name, value in draws[0].items():

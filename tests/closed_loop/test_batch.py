@@ -1,0 +1,85 @@
+"""A study as one diagram: a run is the same bits alone and at any place in any batch, and a
+failing run leaves the others untouched."""
+
+import numpy as np
+import pytest
+
+from drake_uuv import ClosedLoopSimulation, load_scenario
+
+SHORT = ["steps=60", "steady_state_start=20"]
+#: Configurations whose every system steps a batch (the shipped slots' variants).
+CONFIGS = {
+    "paper": ("paper", []),
+    "ekf": ("paper", ["estimator=Ekf"]),
+    "ukf": ("paper", ["estimator=Ukf"]),
+    "lqr-random-attitude": ("paper", ["tracking=LqrTracking", "attitude=RandomAttitude"]),
+    "particle_filter": ("paper", ["estimator=ParticleFilter", "estimator.particles=300"]),
+    "hovering_auv": ("hovering_auv", []),
+    "realistic-ekf": ("realistic", ["estimator=Ekf"]),
+}
+
+
+def assert_same_run(batch_log: dict, i: int, alone_log: dict, what: str) -> None:
+    for name, value in alone_log.items():
+        got = batch_log[name] if name in ("k", "time") else batch_log[name][i]
+        assert np.array_equal(got, value, equal_nan=True), f"{what}: {name} differs"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("config", list(CONFIGS))
+def test_a_run_is_the_same_bits_alone_and_anywhere_in_a_batch(config: str) -> None:
+    """Seeds 4, 9, 2 in a batch of three, and 9 again in a batch of two in the other place:
+    every logged signal and metric of each run is bit for bit the run alone."""
+    name, overrides = CONFIGS[config]
+    scenario = load_scenario(name, [*SHORT, *overrides])
+    alone = ClosedLoopSimulation(scenario)
+    three = ClosedLoopSimulation(scenario, batch_size=3).run_batch([4, 9, 2])
+    two = ClosedLoopSimulation(scenario, batch_size=2).run_batch([9, 4])
+    for batch, seeds in ((three, [4, 9, 2]), (two, [9, 4])):
+        for i, seed in enumerate(seeds):
+            result = alone.run(seed)
+            assert_same_run(batch.log, i, result.log, f"{config} seed {seed} at {i}")
+            for metric, value in batch.metrics.items():
+                if metric in result.metrics:
+                    assert np.array_equal(value[i], result.metrics[metric], equal_nan=True), (
+                        f"{config} seed {seed}: metric {metric}"
+                    )
+
+
+@pytest.mark.slow
+def test_a_failing_run_is_marked_and_the_others_go_on_untouched() -> None:
+    """Run 1's prior is made NaN before the start: the monitor marks it at step 0 and its
+    metrics are NaN, while runs 0 and 2 are bit for bit what they are alone."""
+    scenario = load_scenario("paper", SHORT)
+    simulation = ClosedLoopSimulation(scenario, batch_size=3)
+    estimator = simulation.built.systems["estimator"]
+
+    def spoil_run_1(root):
+        context = estimator.GetMyMutableContextFromRoot(root)
+        x = context.get_discrete_state(0).get_value().copy()
+        x[6:12] = np.nan
+        context.SetDiscreteState(0, x)
+
+    batch = simulation.run_batch([5, 6, 7], prepare=spoil_run_1)
+    assert batch.failures[0] is None and batch.failures[2] is None
+    assert batch.failures[1].startswith("estimator output is not finite")
+    assert batch.failures[1].endswith("at step k=0 (t=0 s)")
+    np.testing.assert_array_equal(batch.failed, [False, True, False])
+    assert np.isnan(batch.metrics["position_rmse"][1])
+    alone = ClosedLoopSimulation(scenario)
+    for i, seed in ((0, 5), (2, 7)):
+        result = alone.run(seed)
+        assert_same_run(batch.log, i, result.log, f"seed {seed}")
+        assert batch.metrics["position_rmse"][i] == result.metrics["position_rmse"]
+
+
+def test_a_batch_takes_one_seed_per_run() -> None:
+    simulation = ClosedLoopSimulation(load_scenario("paper", SHORT), batch_size=2)
+    with pytest.raises(
+        ValueError, match=r"seeds: must be 2 seeds \(one per run of the batch\), got 3"
+    ):
+        simulation.run_batch([1, 2, 3])
+    with pytest.raises(
+        ValueError, match=r"run: this simulation steps 2 runs at once; use run_batch"
+    ):
+        simulation.run(1)
