@@ -163,17 +163,13 @@ def make_uuv_diagram(
     input port is connected to the output port of the same name (the names are
     :data:`drake_uuv.signals.SIGNALS`); each random input port gets a named
     :class:`~drake_uuv.primitives.run_noise.RunNoise` source (named like the port) whose run
-    i draws from run i's seed: a pure function of the seed, the source's name and the step, so
-    the publish and the updates of one tick see the same draw, and a run's draws do not depend
-    on its batch, on the other sources or on the navigation's variant. (Drake's
-    ``RandomSource`` draws one stream for its whole vector, so a run's noise would depend on
-    its place in the batch.) Loggers are ``log_<name>`` for each logged signal, sampled once
+    i draws from run i's seed alone (a pure function of seed, source name and step: the same
+    draw at a tick's publish and updates, whatever the batch or the other sources; Drake's
+    ``RandomSource`` draws one stream for its whole vector). Loggers are ``log_<name>`` for each logged signal, sampled once
     per step so column k holds the value at step k, before that step's update.
 
-    ``batch_size`` B builds every system of the loop for B runs at once (their ports and
-    states hold B runs row-major): the whole study in one diagram. A system of yours in
-    ``systems`` must then step B runs too (its ``batch_size``); one without ``batch_size``
-    runs only with B = 1, and a larger B is refused naming it.
+    ``batch_size`` B builds every system for B runs at once (ports and states hold B runs
+    row-major); a system of yours in ``systems`` must step B runs too (its ``batch_size``).
 
     ``systems`` maps names of the loop's systems (:data:`SYSTEM_NAMES`) to systems of your
     own, used instead of the scenario's: e.g. ``systems={"estimator": MyEstimator()}`` with

@@ -15,6 +15,26 @@ _FINE, _NOT_FINITE, _ASYMMETRIC, _INDEFINITE, _INNOVATIONS = range(5)
 
 
 @njit(cache=True)
+def _positive_definite(P: np.ndarray, L: np.ndarray) -> bool:  # pragma: no cover - compiled
+    """Whether the Cholesky factorisation of ``P``'s lower triangle (LAPACK's potrf reads one
+    triangle too) succeeds, into the work array ``L``."""
+    n = P.shape[0]
+    for j in range(n):
+        s = P[j, j]
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        if not s > 0.0:
+            return False
+        L[j, j] = math.sqrt(s)
+        for i in range(j + 1, n):
+            s = P[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / L[j, j]
+    return True
+
+
+@njit(cache=True)
 def _check_runs(
     x: np.ndarray,
     P: np.ndarray,
@@ -62,22 +82,7 @@ def _check_runs(
         if asymmetry / scale > symmetry_tolerance:
             codes[r] = _ASYMMETRIC
             continue
-        # Cholesky of the lower triangle (LAPACK's potrf reads one triangle too).
-        definite = True
-        for j in range(n):
-            s = P[r, j, j]
-            for k in range(j):
-                s -= L[j, k] * L[j, k]
-            if not s > 0.0:
-                definite = False
-                break
-            L[j, j] = math.sqrt(s)
-            for i in range(j + 1, n):
-                s = P[r, i, j]
-                for k in range(j):
-                    s -= L[i, k] * L[j, k]
-                L[i, j] = s / L[j, j]
-        if not definite:
+        if not _positive_definite(P[r], L):
             codes[r] = _INDEFINITE
             continue
         value = nis[r]
