@@ -12,8 +12,9 @@ derivative evaluations, a few hundred floating-point operations each.
 
 The arithmetic is written operation for operation as the Python-float code it replaces (the
 same IEEE operations in the same order; numba adds no fast-math contraction), so a single
-run reproduces it to the last bit except where that code called numpy's dot (the rotation
-logarithm beyond a quarter turn) or its matrix product (the world-frame outputs).
+run reproduces it to the last bit; where that code called numpy's dot (the rotation
+logarithm beyond a quarter turn), ``_dot_self`` repeats what OpenBLAS computes on this
+machine's CPU (fused multiply-adds).
 
 ``error_model="numpy"``: a run whose state holds NaN or inf (a failed run) divides by zero
 or takes a square root of NaN without raising, and only its own row turns NaN.
@@ -31,7 +32,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 __all__ = [
     "KernelArrays",
@@ -44,7 +48,6 @@ __all__ = [
     "log_rotation",
     "rk3_runs",
     "stepped_runs",
-    "world_vector_runs",
 ]
 
 _SMALL_ANGLE = 1e-9
@@ -117,6 +120,31 @@ def kernel_arrays(
 
 
 # --- One run's pieces ----------------------------------------------------------------------
+
+
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """``a b + c`` rounded once (LLVM's ``fma``, exact in software where the CPU has none)."""
+    signature = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, sig, args):
+        double = ir.DoubleType()
+        function = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(double, [double] * 3), "llvm.fma.f64"
+        )
+        return builder.call(function, args)
+
+    return signature, codegen
+
+
+@njit(cache=True, error_model="numpy")
+def _dot_self(q: np.ndarray, start: int) -> float:
+    """``q[start:] @ q[start:]`` as numpy's dot of a short vector computes it here (OpenBLAS:
+    a chain of fused multiply-adds), so the rare branch that called it keeps its bits."""
+    total = q[start] * q[start]
+    for i in range(start + 1, q.shape[0]):
+        total = _fma(q[i], q[i], total)
+    return total
 
 
 @njit(cache=True, error_model="numpy")
@@ -322,13 +350,14 @@ def _log_via_quaternion(E):
     if q[0] < 0.0:
         for c in range(4):
             q[c] = -q[c]
-    length = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    x, y, z = q[1] / length, q[2] / length, q[3] / length
-    s = math.sqrt(x * x + y * y + z * z)
+    length = math.sqrt(_dot_self(q, 0))
+    for c in range(4):
+        q[c] = q[c] / length
+    s = math.sqrt(_dot_self(q, 1))
     if s < _SMALL_ANGLE:
-        return 2.0 * x, 2.0 * y, 2.0 * z
-    k = 2.0 * math.atan2(s, q[0] / length) / s
-    return k * x, k * y, k * z
+        return 2.0 * q[1], 2.0 * q[2], 2.0 * q[3]
+    k = 2.0 * math.atan2(s, q[0]) / s
+    return k * q[1], k * q[2], k * q[3]
 
 
 @njit(cache=True, error_model="numpy")
@@ -622,14 +651,3 @@ def attitude_runs(x: np.ndarray, out: np.ndarray) -> None:
         R = _rotation(x[b, 3], x[b, 4], x[b, 5], x[b, 6])
         for c in range(9):
             out[b, c] = R[c]
-
-
-@njit(cache=True, error_model="numpy")
-def world_vector_runs(x: np.ndarray, offset: int, out: np.ndarray) -> None:
-    """``R_WB x[:, offset:offset + 3]`` of each run (B×3): a body vector in the world."""
-    for b in range(x.shape[0]):
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation(x[b, 3], x[b, 4], x[b, 5], x[b, 6])
-        v0, v1, v2 = x[b, offset], x[b, offset + 1], x[b, offset + 2]
-        out[b, 0] = r00 * v0 + r01 * v1 + r02 * v2
-        out[b, 1] = r10 * v0 + r11 * v1 + r12 * v2
-        out[b, 2] = r20 * v0 + r21 * v1 + r22 * v2

@@ -8,7 +8,7 @@ from pydrake.systems.framework import BasicVector, Context, ContinuousState, Lea
 from drake_uuv.models.marine_vehicle import MarineVehicleModel
 from drake_uuv.models.so3 import quaternion_from_matrix
 from drake_uuv.models.vehicle_dynamics import VehicleDynamics
-from drake_uuv.models.vehicle_kernels import attitude_runs, world_vector_runs
+from drake_uuv.models.vehicle_kernels import attitude_runs
 from drake_uuv.primitives.batch import batch_size_field, tiled
 from drake_uuv.scenario.plants import HoveringAuv
 
@@ -71,27 +71,32 @@ def declare_vehicle_outputs(
     def position(context: Context, output: BasicVector) -> None:
         output.set_value(runs(context)[:, _P].ravel())
 
-    def world_vector(offset: int) -> Callable[[Context, BasicVector], None]:
+    def rotations(x: np.ndarray) -> np.ndarray:
+        R = np.empty((B, 9))
+        attitude_runs(x, R)
+        return R
+
+    def world_vector(body: slice) -> Callable[[Context, BasicVector], None]:
+        # numpy's matrix product over the stack: each run's bits are those of R @ v alone
+        # (the product these outputs always had; a sum in numba rounds differently).
         def calc(context: Context, output: BasicVector) -> None:
-            out = np.empty((B, 3))
-            world_vector_runs(runs(context), offset, out)
-            output.set_value(out.ravel())
+            x = runs(context)
+            R = rotations(x).reshape(B, 3, 3)
+            output.set_value((R @ x[:, body, None]).ravel())
 
         return calc
 
     def attitude(context: Context, output: BasicVector) -> None:
-        out = np.empty((B, 9))
-        attitude_runs(runs(context), out)
-        output.set_value(out.ravel())
+        output.set_value(rotations(runs(context)).ravel())
 
     def body_velocity(context: Context, output: BasicVector) -> None:
         output.set_value(runs(context)[:, _NU].ravel())
 
     for name, size, calc in (
         ("p_WU", 3, position),
-        ("v_WU", 3, world_vector(_V.start)),
+        ("v_WU", 3, world_vector(_V)),
         ("R_WB", 9, attitude),
-        ("w_WB", 3, world_vector(_W.start)),
+        ("w_WB", 3, world_vector(_W)),
         ("nu_B", 6, body_velocity),
     ):
         system.DeclareVectorOutputPort(name, size * B, calc, prerequisites)
