@@ -61,7 +61,7 @@ class VehicleDynamics:
         x, command = _float_rows(x), _float_rows(command)
         out = np.empty_like(x)
         a = self.arrays
-        derivative_runs(x, command, a.hull, a.M, a.M_inv, a.M_inv_A, a.law, out)
+        derivative_runs(x, command, a.hull, a.values, a.columns, a.law, out)
         return out
 
     def step_runs(self, x: np.ndarray, command: np.ndarray, h: float) -> np.ndarray:
@@ -69,7 +69,7 @@ class VehicleDynamics:
         x, command = _float_rows(x), _float_rows(command)
         out = np.empty_like(x)
         a = self.arrays
-        rk3_runs(x, command, float(h), a.hull, a.M, a.M_inv, a.M_inv_A, a.law, out)
+        rk3_runs(x, command, float(h), a.hull, a.values, a.columns, a.law, out)
         return out
 
     def derivative(self, x: list[float], command: list[float]) -> list[float]:

@@ -63,8 +63,10 @@ class KernelArrays(NamedTuple):
 
     - ``hull`` (17): ``D_lin`` (6), ``D_quad`` (6), ``W r_BG − B r_BB`` (3), ``W − B``, and
       the quaternion norm gain λ.
-    - ``M``, ``M_inv`` (6×6): the mass matrix (rigid body and added mass) and its inverse.
-    - ``M_inv_A`` (6×n): the acceleration per newton of each thruster.
+    - ``values``, ``columns`` (3×6×max(n, 6)): the non-zero entries of each row, and their
+      columns (−1 after the last), of the mass matrix ``M`` (rigid body and added mass),
+      its inverse, and ``M⁻¹ A``, the acceleration per newton of each thruster (6×n), in
+      that order (:func:`sparse_rows`): a product skips the zeros of a diagonal mass.
     - ``pinv`` (n×6): ``A⁺_W``, the weighted pseudo-inverse of the allocation.
     - ``law`` (9): ``f_max``, the thrust lag T (0: none), the gains ω², 2ζω, ω_v, the
       controller period h, the outer period t, 1 for the ``"trajectory"`` attitude reference
@@ -72,9 +74,8 @@ class KernelArrays(NamedTuple):
     """
 
     hull: np.ndarray
-    M: np.ndarray
-    M_inv: np.ndarray
-    M_inv_A: np.ndarray
+    values: np.ndarray
+    columns: np.ndarray
     pinv: np.ndarray
     law: np.ndarray
 
@@ -93,8 +94,8 @@ def kernel_arrays(
     """The :class:`KernelArrays` of a ``MarineVehicleModel`` and a ``ThrustAllocator`` (the
     controller's fields may stay 0 for the state equation alone)."""
 
-    def contiguous(value: np.ndarray) -> np.ndarray:
-        array = np.ascontiguousarray(value, dtype=float)
+    def contiguous(value: np.ndarray, dtype: type = float) -> np.ndarray:
+        array = np.array(value, dtype=dtype, order="C")
         array.flags.writeable = False
         return array
 
@@ -109,14 +110,33 @@ def kernel_arrays(
     ticks = round(outer_period / period) if period > 0.0 else 0
     law = [allocator.max_thrust, thrust_time_constant, *gains, period, outer_period,
            1.0 if trajectory else 0.0, ticks]  # fmt: skip
+    values, columns = sparse_rows([model.M, model.M_inv, model.M_inv @ allocator.A])
     return KernelArrays(
         contiguous(hull),
-        contiguous(model.M),
-        contiguous(model.M_inv),
-        contiguous(model.M_inv @ allocator.A),
+        contiguous(values),
+        contiguous(columns, np.int64),
         contiguous(allocator.A_pinv),
         contiguous(law),
     )
+
+
+def sparse_rows(matrices: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Matrices of r rows as ``(values, columns)``, each m×r×c (c the most columns): row i of
+    matrix k's non-zero entries in column order, their columns, −1 after the last."""
+    width = max(np.shape(matrix)[1] for matrix in matrices)
+    rows = max(np.shape(matrix)[0] for matrix in matrices)
+    values = np.zeros((len(matrices), rows, width))
+    columns = np.full((len(matrices), rows, width), -1, dtype=np.int64)
+    for k, matrix in enumerate(matrices):
+        for i, row in enumerate(np.asarray(matrix, dtype=float)):
+            (nonzero,) = np.nonzero(row)
+            values[k, i, : len(nonzero)] = row[nonzero]
+            columns[k, i, : len(nonzero)] = nonzero
+    return values, columns
+
+
+# The matrices of KernelArrays.values and .columns.
+_M, _M_INV, _M_INV_A = 0, 1, 2
 
 
 # --- One run's pieces ----------------------------------------------------------------------
@@ -148,14 +168,17 @@ def _dot_self(q: np.ndarray, start: int) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def _times(matrix: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
-    """``out = matrix @ v`` by each row's non-zero entries, in column order."""
-    for i in range(matrix.shape[0]):
+def _times(values: np.ndarray, columns: np.ndarray, k: int, v: np.ndarray,
+           out: np.ndarray) -> None:  # fmt: skip
+    """``out = matrix @ v`` for matrix k of ``sparse_rows``: each row's non-zero entries, in
+    column order."""
+    for i in range(values.shape[1]):
         acc = 0.0
-        for j in range(matrix.shape[1]):
-            m = matrix[i, j]
-            if m != 0.0:
-                acc += m * v[j]
+        for j in range(values.shape[2]):
+            column = columns[k, i, j]
+            if column < 0:
+                break
+            acc += values[k, i, j] * v[column]
         out[i] = acc
 
 
@@ -193,17 +216,17 @@ def _bias(nu: np.ndarray, p: np.ndarray, k0: float, k1: float, k2: float, hull: 
 
 
 @njit(cache=True, error_model="numpy")
-def _rates(x: np.ndarray, drive: np.ndarray, hull: np.ndarray, M: np.ndarray,
-           M_inv: np.ndarray, out: np.ndarray, work: np.ndarray) -> None:  # fmt: skip
+def _rates(x: np.ndarray, drive: np.ndarray, hull: np.ndarray, values: np.ndarray,
+           columns: np.ndarray, out: np.ndarray, work: np.ndarray) -> None:  # fmt: skip
     """``[ṗ, q̇, ν̇]`` into ``out[:13]`` with ``drive = M⁻¹ A f`` (``work``: 2×6 scratch)."""
     qw, qx, qy, qz = x[3], x[4], x[5], x[6]
     u, v, w, p, q, r = x[7], x[8], x[9], x[10], x[11], x[12]
     r00, r01, r02, r10, r11, r12, k0, k1, k2 = _rotation(qw, qx, qy, qz)
     nu = x[7:13]
     momentum, bias = work[0], work[1]
-    _times(M, nu, momentum)
+    _times(values, columns, _M, nu, momentum)
     _bias(nu, momentum, k0, k1, k2, hull, bias)
-    _times(M_inv, bias, momentum)  # M⁻¹ bias (the momentum is spent)
+    _times(values, columns, _M_INV, bias, momentum)  # M⁻¹ bias (the momentum is spent)
     k = hull[_NORM_GAIN] * (1.0 - (qw * qw + qx * qx + qy * qy + qz * qz))
     out[0] = r00 * u + r01 * v + r02 * w
     out[1] = r10 * u + r11 * v + r12 * w
@@ -217,30 +240,31 @@ def _rates(x: np.ndarray, drive: np.ndarray, hull: np.ndarray, M: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
-def _state_rates(x: np.ndarray, drive: np.ndarray, hull: np.ndarray, M: np.ndarray,
-                 M_inv: np.ndarray, M_inv_A: np.ndarray, law: np.ndarray, out: np.ndarray,
+def _state_rates(x: np.ndarray, drive: np.ndarray, hull: np.ndarray, values: np.ndarray,
+                 columns: np.ndarray, law: np.ndarray, out: np.ndarray,
                  work: np.ndarray) -> None:  # fmt: skip
     """``ẋ``. Without a lag ``drive = M⁻¹ A sat(f_cmd)``; with one ``drive = sat(f_cmd)``,
     the hull is driven by the lag state ``x[13:]``, which moves toward it (``work``: 3×n
     scratch, n ≥ 6)."""
-    n = M_inv_A.shape[1]
     if law[_LAG_T] > 0.0:
+        n = x.shape[0] - 13
         lagged = work[2, :6]
-        _times(M_inv_A, x[13:], lagged)
-        _rates(x, lagged, hull, M, M_inv, out, work)
+        _times(values, columns, _M_INV_A, x[13:], lagged)
+        _rates(x, lagged, hull, values, columns, out, work)
         rate = 1.0 / law[_LAG_T]
         for i in range(n):
             out[13 + i] = (drive[i] - x[13 + i]) * rate
     else:
-        _rates(x, drive, hull, M, M_inv, out, work)
+        _rates(x, drive, hull, values, columns, out, work)
 
 
 @njit(cache=True, error_model="numpy")
-def _drive(command: np.ndarray, M_inv_A: np.ndarray, law: np.ndarray, saturated: np.ndarray,
+def _drive(command: np.ndarray, values: np.ndarray, columns: np.ndarray, law: np.ndarray,
+           saturated: np.ndarray,
            out: np.ndarray) -> None:  # fmt: skip
     """``sat(f_cmd)`` into ``saturated`` and what drives ``_state_rates`` into ``out``."""
     f_max = law[_F_MAX]
-    n = M_inv_A.shape[1]
+    n = command.shape[0]
     for i in range(n):
         f = command[i]
         saturated[i] = f_max if f > f_max else -f_max if f < -f_max else f
@@ -248,12 +272,12 @@ def _drive(command: np.ndarray, M_inv_A: np.ndarray, law: np.ndarray, saturated:
         for i in range(n):
             out[i] = saturated[i]
     else:  # A f is constant over the step
-        _times(M_inv_A, saturated, out)
+        _times(values, columns, _M_INV_A, saturated, out)
 
 
 @njit(cache=True, error_model="numpy")
-def _rk3(x: np.ndarray, command: np.ndarray, h: float, hull: np.ndarray, M: np.ndarray,
-         M_inv: np.ndarray, M_inv_A: np.ndarray, law: np.ndarray, out: np.ndarray,
+def _rk3(x: np.ndarray, command: np.ndarray, h: float, hull: np.ndarray, values: np.ndarray,
+         columns: np.ndarray, law: np.ndarray, out: np.ndarray,
          work: np.ndarray) -> None:  # fmt: skip
     """Kutta's third-order step of ``x`` over h under ``command`` held (Drake's
     ``RungeKutta3Integrator``): ``k1 = F(x)``, ``k2 = F(x + h/2 k1)``,
@@ -261,15 +285,15 @@ def _rk3(x: np.ndarray, command: np.ndarray, h: float, hull: np.ndarray, M: np.n
     nx = x.shape[0]
     k1, k2, k3, y = work[0, :nx], work[1, :nx], work[2, :nx], work[3, :nx]
     drive, saturated, scratch = work[4], work[5], work[6:9]
-    _drive(command, M_inv_A, law, saturated, drive)
-    _state_rates(x, drive, hull, M, M_inv, M_inv_A, law, k1, scratch)
+    _drive(command, values, columns, law, saturated, drive)
+    _state_rates(x, drive, hull, values, columns, law, k1, scratch)
     half, two = 0.5 * h, 2.0 * h
     for i in range(nx):
         y[i] = x[i] + half * k1[i]
-    _state_rates(y, drive, hull, M, M_inv, M_inv_A, law, k2, scratch)
+    _state_rates(y, drive, hull, values, columns, law, k2, scratch)
     for i in range(nx):
         y[i] = x[i] - h * k1[i] + two * k2[i]
-    _state_rates(y, drive, hull, M, M_inv, M_inv_A, law, k3, scratch)
+    _state_rates(y, drive, hull, values, columns, law, k3, scratch)
     sixth, two_thirds = h / 6.0, 2.0 * h / 3.0
     for i in range(nx):
         out[i] = x[i] + sixth * k1[i] + two_thirds * k2[i] + sixth * k3[i]
@@ -447,7 +471,8 @@ def _latch(time: float, R, nu: np.ndarray, u1: np.ndarray, u2: np.ndarray, t: fl
 
 @njit(cache=True, error_model="numpy")
 def _tick(s: float, R, nu: np.ndarray, latch: np.ndarray, u2: np.ndarray, target: np.ndarray,
-          hull: np.ndarray, M: np.ndarray, pinv: np.ndarray, law: np.ndarray,
+          hull: np.ndarray, values: np.ndarray, columns: np.ndarray, pinv: np.ndarray,
+          law: np.ndarray,
           thrust: np.ndarray, wrench: np.ndarray, v_ref: np.ndarray, work: np.ndarray):  # fmt: skip
     """One controller tick ``s = τ − kt`` into the step for the vehicle at ``R``, ``nu``: the
     thrusts, the wrench and the velocity reference into the outputs; returns the allocation's
@@ -490,9 +515,9 @@ def _tick(s: float, R, nu: np.ndarray, latch: np.ndarray, u2: np.ndarray, target
     half = 0.5 * law[_H]
     for i in range(6):
         nu_mid[i] = nu[i] + half * nu_dot[i]
-    _times(M, nu_mid, momentum)
+    _times(values, columns, _M, nu_mid, momentum)
     _bias(nu_mid, momentum, r20, r21, r22, hull, bias)
-    _times(M, nu_dot, momentum)
+    _times(values, columns, _M, nu_dot, momentum)
     for i in range(6):
         wrench[i] = momentum[i] + bias[i]
     return _allocate(wrench, pinv, law[_F_MAX], thrust, work)
@@ -507,25 +532,25 @@ def _rows9(a: np.ndarray):
 
 
 @njit(cache=True, error_model="numpy")
-def derivative_runs(x: np.ndarray, command: np.ndarray, hull: np.ndarray, M: np.ndarray,
-                    M_inv: np.ndarray, M_inv_A: np.ndarray, law: np.ndarray,
+def derivative_runs(x: np.ndarray, command: np.ndarray, hull: np.ndarray,
+                    values: np.ndarray, columns: np.ndarray, law: np.ndarray,
                     out: np.ndarray) -> None:  # fmt: skip
     """``ẋ`` of each run (``x``, ``out``: B×nx; ``command``: B×n) (``VehicleDynamics``)."""
-    work = np.empty((9, max(x.shape[1], M_inv_A.shape[1], 6)))
+    work = np.empty((9, max(x.shape[1], command.shape[1], 6)))
     drive, saturated = work[4], work[5]
     for b in range(x.shape[0]):
-        _drive(command[b], M_inv_A, law, saturated, drive)
-        _state_rates(x[b], drive, hull, M, M_inv, M_inv_A, law, out[b], work[6:9])
+        _drive(command[b], values, columns, law, saturated, drive)
+        _state_rates(x[b], drive, hull, values, columns, law, out[b], work[6:9])
 
 
 @njit(cache=True, error_model="numpy")
-def rk3_runs(x: np.ndarray, command: np.ndarray, h: float, hull: np.ndarray, M: np.ndarray,
-             M_inv: np.ndarray, M_inv_A: np.ndarray, law: np.ndarray,
+def rk3_runs(x: np.ndarray, command: np.ndarray, h: float, hull: np.ndarray,
+             values: np.ndarray, columns: np.ndarray, law: np.ndarray,
              out: np.ndarray) -> None:  # fmt: skip
     """One RK3 step of each run over h, its command held (B×nx, B×n → B×nx)."""
-    work = np.empty((9, max(x.shape[1], M_inv_A.shape[1], 6)))
+    work = np.empty((9, max(x.shape[1], command.shape[1], 6)))
     for b in range(x.shape[0]):
-        _rk3(x[b], command[b], h, hull, M, M_inv, M_inv_A, law, out[b], work)
+        _rk3(x[b], command[b], h, hull, values, columns, law, out[b], work)
 
 
 @njit(cache=True, error_model="numpy")
@@ -548,8 +573,8 @@ def _count(saturation: np.ndarray, out: np.ndarray, ticks: float, force: float,
 
 @njit(cache=True, error_model="numpy")
 def stepped_runs(time: float, x: np.ndarray, u1: np.ndarray, u2: np.ndarray,
-                 saturation: np.ndarray, hull: np.ndarray, M: np.ndarray, M_inv: np.ndarray,
-                 M_inv_A: np.ndarray, pinv: np.ndarray, law: np.ndarray, x_out: np.ndarray,
+                 saturation: np.ndarray, hull: np.ndarray, values: np.ndarray,
+                 columns: np.ndarray, pinv: np.ndarray, law: np.ndarray, x_out: np.ndarray,
                  latch: np.ndarray, target: np.ndarray, rate: np.ndarray, v_ref: np.ndarray,
                  thrust: np.ndarray, wrench: np.ndarray, scale: np.ndarray,
                  saturation_out: np.ndarray) -> None:  # fmt: skip
@@ -561,7 +586,7 @@ def stepped_runs(time: float, x: np.ndarray, u1: np.ndarray, u2: np.ndarray,
     (B×3), and the last tick's velocity reference (B×3), thrusts (B×n), wrench (B×6) and
     scales (B×2), and the counts plus this step's.
     """
-    n = M_inv_A.shape[1]
+    n = pinv.shape[0]
     nx = x.shape[1]
     h, t, ticks = law[_H], law[_OUTER], int(law[_TICKS])
     work = np.empty((9, max(nx, n, 6)))
@@ -584,7 +609,8 @@ def stepped_runs(time: float, x: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                 rate[b],
                 target[b],
                 hull,
-                M,
+                values,
+                columns,
                 pinv,
                 law,
                 thrust[b],
@@ -599,7 +625,7 @@ def stepped_runs(time: float, x: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                 moment += 1.0
             if smaller < 1.0:
                 either += 1.0
-            _rk3(state, thrust[b], h, hull, M, M_inv, M_inv_A, law, xb, work)
+            _rk3(state, thrust[b], h, hull, values, columns, law, xb, work)
             for i in range(nx):
                 state[i] = xb[i]
         scale[b, 0], scale[b, 1] = force_scale, moment_scale
@@ -609,7 +635,8 @@ def stepped_runs(time: float, x: np.ndarray, u1: np.ndarray, u2: np.ndarray,
 @njit(cache=True, error_model="numpy")
 def controller_runs(time: float, fresh: bool, R_WB: np.ndarray, nu_B: np.ndarray,
                     u1: np.ndarray, u2: np.ndarray, saturation: np.ndarray, hull: np.ndarray,
-                    M: np.ndarray, pinv: np.ndarray, law: np.ndarray, latch: np.ndarray,
+                    values: np.ndarray, columns: np.ndarray, pinv: np.ndarray,
+                    law: np.ndarray, latch: np.ndarray,
                     target: np.ndarray, rate: np.ndarray, v_ref: np.ndarray,
                     thrust: np.ndarray, wrench: np.ndarray, scale: np.ndarray,
                     saturation_out: np.ndarray) -> None:  # fmt: skip
@@ -630,7 +657,8 @@ def controller_runs(time: float, fresh: bool, R_WB: np.ndarray, nu_B: np.ndarray
             rate[b],
             target[b],
             hull,
-            M,
+            values,
+            columns,
             pinv,
             law,
             thrust[b],

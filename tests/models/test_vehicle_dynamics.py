@@ -6,7 +6,7 @@ from numpy.testing import assert_allclose
 
 from drake_uuv.models.marine_vehicle import quaternion_derivative, rotation_from_quaternion
 from drake_uuv.models.vehicle_dynamics import VehicleDynamics
-from drake_uuv.models.vehicle_kernels import _times
+from drake_uuv.models.vehicle_kernels import _times, sparse_rows
 from drake_uuv.scenario.plants import HoveringAuv
 from tests.models.test_marine_vehicle_model import RNG_SEED, random_model
 
@@ -31,7 +31,8 @@ def test_the_sparse_product_is_the_matrix_product(diagonal: bool) -> None:
         matrix = rng.normal(size=(6, 8)) * (rng.uniform(size=(6, 8)) < 0.6)
     v = rng.normal(size=matrix.shape[1])
     out = np.empty(6)
-    _times(matrix, v, out)
+    values, columns = sparse_rows([np.eye(6), matrix])
+    _times(values, columns, 1, v, out)
     assert_allclose(out, matrix @ v, rtol=1e-14, atol=1e-14)
 
 
