@@ -6,24 +6,23 @@ allocation (``ThrustAllocator``), for every batch size: each kernel loops over t
 its ``(B, n)`` arguments and does one run's whole work in compiled code. A run's numbers
 depend on its own row only, so they are the same bits whatever its batch; a run's branches
 (saturation, small angles, a half-turn attitude error) are taken inside its own iteration.
-At ``B = 1`` this replaces Python-float code whose cost was numpy's and the interpreter's
-per-call overhead: an outer step of the stepped plant is 25 controller ticks and 75
-derivative evaluations, a few hundred floating-point operations each.
+Compiled, not numpy over the runs: per run and controller tick the work is a few hundred
+floating-point operations on 3- to 13-vectors (an outer step of the stepped plant is 25 ticks
+and 75 derivative evaluations), where numpy's cost per call would dominate at small B.
 
-The arithmetic is written operation for operation as the Python-float code it replaces (the
-same IEEE operations in the same order; numba adds no fast-math contraction), so a single
-run reproduces it to the last bit; where that code called numpy's dot (the rotation
-logarithm beyond a quarter turn), ``_dot_self`` repeats what OpenBLAS computes on this
-machine's CPU (fused multiply-adds).
+The operations are those of the Python-float code these kernels took over, in the same
+order (numba adds no fast-math contraction), so a single run keeps its bits to the last;
+where that code called numpy's dot (the rotation logarithm beyond a quarter turn),
+``_dot_self`` repeats what OpenBLAS computes on this machine's CPU (fused multiply-adds).
 
 ``error_model="numpy"``: a run whose state holds NaN or inf (a failed run) divides by zero
 or takes a square root of NaN without raising, and only its own row turns NaN.
 
 The model's parameters travel as the arrays of :class:`KernelArrays`
-(:func:`kernel_arrays`). ``cache=True`` keeps the machine code between processes (about
-20 s to compile on a cold cache; then a few hundred milliseconds to load). Every kernel is
-in this file on purpose: numba's cache does not notice a change in a compiled function
-that another file's kernel calls.
+(:func:`kernel_arrays`). ``cache=True`` keeps the machine code between processes (7 s of CPU
+to compile on a cold cache, under a second to load). Every kernel is in this file on
+purpose: numba's cache does not notice a change in a compiled function that another file's
+kernel calls.
 """
 
 from __future__ import annotations
@@ -47,6 +46,7 @@ __all__ = [
     "kernel_arrays",
     "log_rotation",
     "rk3_runs",
+    "sparse_rows",
     "stepped_runs",
 ]
 
