@@ -123,7 +123,8 @@ def rotation_from_quaternion(q_WB: np.ndarray) -> np.ndarray:
 
 
 def rotation_rows(q: list[float]) -> list[list[float]]:
-    """The rows of ``R_WB`` of ``q / |q|``, on Python floats (the vehicle's derivative uses it)."""
+    """The rows of ``R_WB`` of ``q / |q|``, on Python floats (``vehicle_kernels._rotation``
+    computes the same in the compiled vehicle)."""
     w, x, y, z = q
     s = 2.0 / (w * w + x * x + y * y + z * z)
     return [
@@ -239,8 +240,8 @@ class MarineVehicleModel:
         """``C(ν) ν + D(ν) ν + g(η)``: what τ must supply for ``ν̇ = 0``.
 
         The same terms as :meth:`coriolis_force`, :meth:`damping_force` and
-        :meth:`restoring_force`, on Python floats: it runs in every derivative evaluation,
-        where numpy's per-call overhead on 3-vectors costs more than the arithmetic.
+        :meth:`restoring_force`, on Python floats, in the order the compiled vehicle
+        (``vehicle_kernels._bias``) takes them.
         """
         return np.array(self._bias(nu.tolist(), (self.M @ nu).tolist(), R_WB[2].tolist()))
 

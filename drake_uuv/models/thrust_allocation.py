@@ -27,9 +27,9 @@ symmetric thruster layouts.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
+
+from drake_uuv.models.vehicle_kernels import allocate_runs
 
 __all__ = ["ThrustAllocator", "allocation_matrix", "weighted_pseudo_inverse"]
 
@@ -90,11 +90,8 @@ class ThrustAllocator:
             raise ValueError(f"max_thrust: must be > 0, got {max_thrust!r}")
         self.max_thrust = float(max_thrust)
         self.A_pinv = weighted_pseudo_inverse(self.A, np.ones(n) if weights is None else weights)
-        # Rows split once, as Python floats: force part and moment part of the pseudo-inverse
-        # (allocate runs at every controller tick, on 3-vectors, where numpy's per-call
-        # overhead costs more than the arithmetic).
-        self._force_rows = self.A_pinv[:, :3].tolist()
-        self._moment_rows = self.A_pinv[:, 3:].tolist()
+        self._pinv = np.array(self.A_pinv, order="C")  # the kernels read-only copy
+        self._pinv.flags.writeable = False
 
     @property
     def num_thrusters(self) -> int:
@@ -121,31 +118,14 @@ class ThrustAllocator:
         Returns ``(f, force_scale, moment_scale)``; both scales are 1 when the wrench is
         feasible, and then ``A f = wrench`` exactly.
         """
-        thrust, force_scale, moment_scale = self.allocate_floats(np.asarray(wrench).tolist())
-        return np.array(thrust), force_scale, moment_scale
+        thrust, scales = self.allocate_runs(np.asarray(wrench, dtype=float).reshape(1, 6))
+        return thrust[0], float(scales[0, 0]), float(scales[0, 1])
 
-    def allocate_floats(self, wrench: list[float]) -> tuple[list[float], float, float]:
-        """:meth:`allocate` on a list of 6 Python floats, returning the thrusts as a list."""
-        f_max = self.max_thrust
-        fx, fy, fz, mx, my, mz = wrench
-        f_moment = [a * mx + b * my + c * mz for a, b, c in self._moment_rows]
-        peak = max(map(abs, f_moment))
-        moment_scale = 1.0
-        if peak > f_max:
-            moment_scale = f_max / peak
-            f_moment = [moment_scale * f for f in f_moment]
-        f_force = [a * fx + b * fy + c * fz for a, b, c in self._force_rows]
-        total = [m + f for m, f in zip(f_moment, f_force, strict=True)]
-        if max(map(abs, total)) <= f_max:
-            return total, 1.0, moment_scale
-        # Largest s with |f_moment + s f_force| ≤ f_max for every thruster (|f_moment| ≤ f_max).
-        limit = min(
-            (f_max - m) / f if f > 0.0 else (-f_max - m) / f if f < 0.0 else math.inf
-            for m, f in zip(f_moment, f_force, strict=True)
-        )
-        force_scale = min(1.0, max(0.0, limit))
-        return (
-            [m + force_scale * f for m, f in zip(f_moment, f_force, strict=True)],
-            force_scale,
-            moment_scale,
-        )
+    def allocate_runs(self, wrench: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`allocate` of each run's wrench (B×6): thrusts (B×n) and scales (B×2, force
+        then moment), each run alone (compiled: ``vehicle_kernels.allocate_runs``)."""
+        wrench = np.array(wrench, dtype=float, order="C", ndmin=2)
+        thrust = np.empty((len(wrench), self.num_thrusters))
+        scales = np.empty((len(wrench), 2))
+        allocate_runs(wrench, self._pinv, self.max_thrust, thrust, scales)
+        return thrust, scales

@@ -1,4 +1,4 @@
-"""The thruster-driven vehicle's state equation on Python floats, and a fixed step of it.
+"""The thruster-driven vehicle's state equation and a fixed step of it, for one run or a batch.
 
 State ``x = [p_WU (3), q_WB (4: w, x, y, z), ν_B (6: v_B, ω_B), f (n, with a thrust lag only)]``
 and, with ``f_cmd`` the commanded thrusts and ``sat`` their clip to ``±f_max``,
@@ -8,9 +8,8 @@ and, with ``f_cmd`` the commanded thrusts and ``sat`` their clip to ``±f_max``,
     ν̇    = M⁻¹ (A f − C(ν) ν − D(ν) ν − g(η))                 (Fossen, MarineVehicleModel)
     ḟ    = (sat(f_cmd) − f) / T   with a lag T > 0; without one f = sat(f_cmd).
 
-Python floats, not numpy: this runs a few times per controller tick, on 3- to 13-vectors, where
-numpy's per-call overhead costs more than the arithmetic. ``M`` and ``M⁻¹`` are applied by
-their non-zero entries (diagonal for a vehicle with G at U and diagonal added mass).
+The arithmetic is compiled (``drake_uuv/models/vehicle_kernels.py``: numba kernels that loop
+over the runs of a batch); ``M`` and ``M⁻¹`` are applied by their non-zero entries.
 
 :meth:`VehicleDynamics.step` is Kutta's third-order Runge–Kutta step, the tableau of Drake's
 ``RungeKutta3Integrator``, with the command held over the step (a controller's period).
@@ -18,47 +17,13 @@ their non-zero entries (diagonal for a vehicle with G at U and diagonal added ma
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
-from drake_uuv.models.marine_vehicle import (
-    QUATERNION_NORM_GAIN,
-    MarineVehicleModel,
-    rotation_rows,
-)
+from drake_uuv.models.marine_vehicle import QUATERNION_NORM_GAIN, MarineVehicleModel
 from drake_uuv.models.thrust_allocation import ThrustAllocator
+from drake_uuv.models.vehicle_kernels import KernelArrays, derivative_runs, kernel_arrays, rk3_runs
 
-__all__ = ["VehicleDynamics", "matrix_times", "sparse_rows", "times"]
-
-Rows = list[list[tuple[int, float]]]
-
-
-def sparse_rows(matrix: np.ndarray) -> Rows:
-    """The non-zero entries of each row of ``matrix``, as ``(column, value)`` pairs."""
-    return [[(j, float(m)) for j, m in enumerate(row) if m != 0.0] for row in np.asarray(matrix)]
-
-
-def times(rows: Rows, v: list[float]) -> list[float]:
-    """``matrix @ v`` for ``rows = sparse_rows(matrix)``, on Python floats."""
-    return [sum([m * v[j] for j, m in row]) for row in rows]
-
-
-def matrix_times(matrix: np.ndarray) -> Callable[[list[float]], list[float]]:
-    """``v ↦ matrix @ v`` on Python floats: element-wise for a diagonal 6×6 matrix (a mass
-    matrix with G at U and diagonal added mass), else by the rows' non-zero entries."""
-    matrix = np.asarray(matrix, dtype=float)
-    diagonal = np.diag(matrix).tolist()
-    if matrix.shape == (6, 6) and np.array_equal(matrix, np.diag(diagonal)):
-        m0, m1, m2, m3, m4, m5 = diagonal
-
-        def diagonal_times(v: list[float]) -> list[float]:
-            v0, v1, v2, v3, v4, v5 = v
-            return [m0 * v0, m1 * v1, m2 * v2, m3 * v3, m4 * v4, m5 * v5]
-
-        return diagonal_times
-    rows = sparse_rows(matrix)
-    return lambda v: times(rows, v)
+__all__ = ["VehicleDynamics"]
 
 
 class VehicleDynamics:
@@ -68,6 +33,9 @@ class VehicleDynamics:
         model: the hull's ``M``, ``C``, ``D``, ``g`` (``MarineVehicleModel``).
         allocator: the thruster layout (its ``A`` and ``max_thrust``).
         thrust_time_constant: T [s] of the thrust lag, 0 for none.
+
+    :meth:`derivative_runs` and :meth:`step_runs` take a batch (B×nx states, B×n commands);
+    :meth:`derivative` and :meth:`step` one run as lists of floats (a batch of one).
     """
 
     def __init__(
@@ -79,68 +47,42 @@ class VehicleDynamics:
         self.time_constant = float(thrust_time_constant)
         self.lag = self.time_constant > 0.0
         self.num_states = 13 + (self.num_thrusters if self.lag else 0)
-        self._M = matrix_times(model.M)
-        self._M_inv = matrix_times(model.M_inv)
-        # M⁻¹ A: the acceleration per newton of each thruster.
-        self._M_inv_A = matrix_times(model.M_inv @ allocator.A)
+        self.arrays: KernelArrays = kernel_arrays(
+            model, allocator, self.time_constant, norm_gain=QUATERNION_NORM_GAIN
+        )
 
     def saturate(self, command: list[float]) -> list[float]:
         """``sat(f_cmd)``: each thrust clipped to ``±max_thrust``."""
         f_max = self.max_thrust
         return [f_max if f > f_max else -f_max if f < -f_max else f for f in command]
 
+    def derivative_runs(self, x: np.ndarray, command: np.ndarray) -> np.ndarray:
+        """``ẋ`` of each run (B×nx) under its commanded thrusts (B×n)."""
+        x, command = _float_rows(x), _float_rows(command)
+        out = np.empty_like(x)
+        a = self.arrays
+        derivative_runs(x, command, a.hull, a.values, a.columns, a.law, out)
+        return out
+
+    def step_runs(self, x: np.ndarray, command: np.ndarray, h: float) -> np.ndarray:
+        """Each run's :meth:`step` (B×nx states, B×n commands held over ``[t, t + h]``)."""
+        x, command = _float_rows(x), _float_rows(command)
+        out = np.empty_like(x)
+        a = self.arrays
+        rk3_runs(x, command, float(h), a.hull, a.values, a.columns, a.law, out)
+        return out
+
     def derivative(self, x: list[float], command: list[float]) -> list[float]:
-        """``ẋ`` at state ``x`` under the commanded thrusts ``command`` (lists of floats)."""
-        f = self.saturate(command)
-        if not self.lag:
-            return self._rates(x, self._M_inv_A(f))
-        return self._lagged_rates(x, f)
+        """``ẋ`` at state ``x`` under the commanded thrusts ``command`` (one run)."""
+        return self.derivative_runs(np.array([x]), np.array([command]))[0].tolist()
 
     def step(self, x: list[float], command: list[float], h: float) -> list[float]:
         """``x(t + h)`` by Kutta's third-order step under ``command`` held over ``[t, t + h]``:
         ``k1 = F(x)``, ``k2 = F(x + h/2 k1)``, ``k3 = F(x − h k1 + 2h k2)``,
         ``x + h/6 (k1 + 4 k2 + k3)`` (Drake's ``RungeKutta3Integrator``)."""
-        f = self.saturate(command)
-        if self.lag:
-            rates, drive = self._lagged_rates, f
-        else:
-            rates, drive = self._rates, self._M_inv_A(f)  # A f is constant over the step
-        k1 = rates(x, drive)
-        half, two = 0.5 * h, 2.0 * h
-        k2 = rates([a + half * b for a, b in zip(x, k1, strict=True)], drive)
-        k3 = rates([a - h * b + two * c for a, b, c in zip(x, k1, k2, strict=True)], drive)
-        sixth, two_thirds = h / 6.0, 2.0 * h / 3.0
-        return [
-            a + sixth * b + two_thirds * c + sixth * d
-            for a, b, c, d in zip(x, k1, k2, k3, strict=True)
-        ]
+        return self.step_runs(np.array([x]), np.array([command]), h)[0].tolist()
 
-    def _lagged_rates(self, x: list[float], f: list[float]) -> list[float]:
-        """``ẋ`` with the lag: the hull driven by the lag state ``x[13:]``, which moves toward
-        the saturated command ``f``."""
-        thrust = x[13:]
-        rate = 1.0 / self.time_constant
-        return self._rates(x, self._M_inv_A(thrust)) + [
-            (c - t) * rate for c, t in zip(f, thrust, strict=True)
-        ]
 
-    def _rates(self, x: list[float], drive: list[float]) -> list[float]:
-        """``[ṗ, q̇, ν̇]`` with ``drive = M⁻¹ A f``."""
-        quaternion, nu = x[3:7], x[7:13]
-        qw, qx, qy, qz = quaternion
-        u, v, w, p, q, r = nu
-        (r00, r01, r02), (r10, r11, r12), k_B = rotation_rows(quaternion)
-        bias = self.model._bias(nu, self._M(nu), k_B)
-        d0, d1, d2, d3, d4, d5 = drive
-        b0, b1, b2, b3, b4, b5 = self._M_inv(bias)
-        k = QUATERNION_NORM_GAIN * (1.0 - (qw * qw + qx * qx + qy * qy + qz * qz))
-        return [
-            r00 * u + r01 * v + r02 * w,
-            r10 * u + r11 * v + r12 * w,
-            k_B[0] * u + k_B[1] * v + k_B[2] * w,
-            0.5 * (-qx * p - qy * q - qz * r) + k * qw,
-            0.5 * (qw * p + qy * r - qz * q) + k * qx,
-            0.5 * (qw * q + qz * p - qx * r) + k * qy,
-            0.5 * (qw * r + qx * q - qy * p) + k * qz,
-            d0 - b0, d1 - b1, d2 - b2, d3 - b3, d4 - b4, d5 - b5,
-        ]  # fmt: skip
+def _float_rows(value: np.ndarray) -> np.ndarray:
+    """A C-contiguous writable float64 2-D copy (the kernels' one signature)."""
+    return np.array(value, dtype=float, order="C", ndmin=2)

@@ -8,7 +8,8 @@ from drake_uuv.plants.kinematic_uuv import KinematicUuvPlant
 from drake_uuv.primitives.variant_table import variant_system
 from drake_uuv.scenario import HoveringAuv, KinematicUuv, Scenario
 
-#: Variant dataclass → its system, built as ``cls(config, setting=PlantSetting(...))``.
+#: Variant dataclass → its system, built as
+#: ``cls(config, setting=PlantSetting(...), batch_size=B)``.
 PLANTS: dict[type, type[System]] = {
     KinematicUuv: KinematicUuvPlant,
     HoveringAuv: HoveringAuvPlant,
@@ -21,10 +22,7 @@ def plant_setting(scenario: Scenario) -> PlantSetting:
 
 
 def make_plant(scenario: Scenario, *, batch_size: int = 1) -> System:
-    """The vehicle of ``scenario.plant``'s variant, at ``scenario.uuv``'s initial state."""
+    """The vehicle of ``scenario.plant``'s variant, at ``scenario.uuv``'s initial state, for
+    ``batch_size`` runs."""
     cls = variant_system(PLANTS, scenario.plant, "plant")
-    return cls(scenario.plant, setting=plant_setting(scenario), **_TRANSITIONAL(batch_size))
-
-
-def _TRANSITIONAL(batch_size: int) -> dict:  # TRANSITIONAL until the slot's systems batch
-    return {} if batch_size == 1 else {"batch_size": batch_size}
+    return cls(scenario.plant, setting=plant_setting(scenario), batch_size=batch_size)

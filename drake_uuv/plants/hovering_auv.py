@@ -7,6 +7,7 @@ from drake_uuv.plants.base import PlantSetting
 from drake_uuv.plants.hovering_auv_stepped import SteppedHoveringAuv
 from drake_uuv.plants.low_level_controller import ControllerStates, LowLevelController
 from drake_uuv.plants.marine_vehicle import MarineVehicle
+from drake_uuv.primitives.batch import batch_size_field
 from drake_uuv.primitives.signal import Signal
 from drake_uuv.scenario.plants import HoveringAuv
 
@@ -109,6 +110,13 @@ class HoveringAuvPlant(Diagram):
     controller and its integrator; the ``setting`` gives the outer period and the initial
     state (at rest in rotation). Simulate with :meth:`configure_simulator` (the closed loop's
     simulation calls it). :data:`extra_signals` are logged with the closed loop's signals.
+
+    Sizes are per run: with ``batch_size`` B every port and state holds B runs row-major
+    (:mod:`drake_uuv.primitives.batch`), each from the setting's initial state. With the
+    default ``runge_kutta3`` each run's numbers are its own, the same bits whatever its
+    batch (no continuous state; ``configure_simulator`` does nothing). With ``runge_kutta5``
+    the error-controlled integrator chooses one step for the whole batch (see
+    ``MarineVehicle``): a run then agrees with itself alone to the integrator's accuracy.
     """
 
     #: The outputs beyond the plant contract that a run logs (once per outer step).
@@ -121,13 +129,15 @@ class HoveringAuvPlant(Diagram):
         Signal("saturation_ticks", "uuv", (4,), "fast ticks; with force, moment, either scaled"),
     )
 
-    def __init__(self, config: HoveringAuv, *, setting: PlantSetting) -> None:
+    def __init__(self, config: HoveringAuv, *, setting: PlantSetting, batch_size: int = 1) -> None:
         super().__init__()
         config.validate("config")
+        self.batch_size = batch_size_field(batch_size)
         builder = DiagramBuilder()
         if config.integrator == "runge_kutta3":
             stepped = builder.AddNamedSystem(
-                "stepped_vehicle", SteppedHoveringAuv(config, setting=setting)
+                "stepped_vehicle",
+                SteppedHoveringAuv(config, setting=setting, batch_size=self.batch_size),
             )
             inputs = outputs = stepped
             self._vehicle = self._controller = None
@@ -156,11 +166,17 @@ class HoveringAuvPlant(Diagram):
                 initial_position=setting.initial_position,
                 initial_velocity=setting.initial_velocity,
                 initial_R_WB=R0,
+                batch_size=self.batch_size,
             ),
         )
         controller = builder.AddNamedSystem(
             "low_level_controller",
-            LowLevelController(config, outer_period=setting.time_step, initial_R_WB=R0),
+            LowLevelController(
+                config,
+                outer_period=setting.time_step,
+                initial_R_WB=R0,
+                batch_size=self.batch_size,
+            ),
         )
         builder.Connect(controller.GetOutputPort("thrust_command"), vehicle.get_input_port())
         for name in ("R_WB", "nu_B"):

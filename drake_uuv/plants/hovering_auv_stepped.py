@@ -3,15 +3,11 @@
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from drake_uuv.models.marine_vehicle import rotation_rows
-from drake_uuv.models.vehicle_dynamics import VehicleDynamics
+from drake_uuv.models.vehicle_kernels import stepped_runs
 from drake_uuv.plants.base import PlantSetting
-from drake_uuv.plants.low_level_controller import (
-    ControllerStates,
-    low_level_law,
-    saturation_counts,
-)
+from drake_uuv.plants.low_level_controller import ControllerStates, float_rows, low_level_law
 from drake_uuv.plants.marine_vehicle import declare_vehicle_outputs, vehicle_initial_state
+from drake_uuv.primitives.batch import batch_size_field, tiled
 from drake_uuv.scenario.plants import HoveringAuv
 
 __all__ = ["SteppedHoveringAuv"]
@@ -38,33 +34,35 @@ class SteppedHoveringAuv(LeafSystem):
 
     Ports: ``HoveringAuvPlant``'s, the same names, sizes and meanings (its
     ``pydrake_system`` block lists them: the plant exports this system's ports one for one,
-    so the list is kept in one place).
+    so the list is kept in one place). With ``batch_size`` B every port and state holds B
+    runs row-major; an outer step of all of them is one compiled kernel
+    (``vehicle_kernels.stepped_runs``), which takes each run's whole step (latch, ticks,
+    allocation under saturation, RK3 steps) in turn.
     """
 
-    def __init__(self, config: HoveringAuv, *, setting: PlantSetting) -> None:
+    def __init__(self, config: HoveringAuv, *, setting: PlantSetting, batch_size: int = 1) -> None:
         super().__init__()
-        self._law = low_level_law(config, setting.time_step)
-        self._dynamics = VehicleDynamics(
-            self._law.model, self._law.allocator, config.thrust_time_constant
-        )
-        self._h = self._law.period
-        self._ticks = round(self._law.outer_period / self._h)
-        n = self._dynamics.num_thrusters
+        self.batch_size = B = batch_size_field(batch_size)
+        self._law = law = low_level_law(config, setting.time_step)
+        self._h = law.period
+        self._n = n = law.allocator.num_thrusters
+        self._lag = config.thrust_time_constant > 0.0
+        self._max_thrust = law.allocator.max_thrust
         R0 = setting.initial_R_WB
         x0 = vehicle_initial_state(
             setting.initial_position,
             setting.initial_velocity,
             R0,
-            num_lag_states=n if self._dynamics.lag else 0,
+            num_lag_states=n if self._lag else 0,
         )
-        self._u1_port = self.DeclareVectorInputPort("u1_B", 3)
-        self._u2_port = self.DeclareVectorInputPort("u2_W", 3)
-        self._vehicle = self.DeclareDiscreteState(x0)
+        self._u1_port = self.DeclareVectorInputPort("u1_B", 3 * B)
+        self._u2_port = self.DeclareVectorInputPort("u2_W", 3 * B)
+        self._vehicle = self.DeclareDiscreteState(tiled(x0, B))
         state_only = {self.xd_ticket()}
-        declare_vehicle_outputs(self, self._vehicle_state, state_only)
-        self.DeclareVectorOutputPort("thrust", n, self._calc_thrust, state_only)
-        self._states = ControllerStates(self, n, np.asarray(R0, dtype=float))
-        self.DeclarePeriodicDiscreteUpdateEvent(self._law.outer_period, 0.0, self._update)
+        declare_vehicle_outputs(self, self._vehicle_state, state_only, B)
+        self.DeclareVectorOutputPort("thrust", n * B, self._calc_thrust, state_only)
+        self._states = ControllerStates(self, n, np.asarray(R0, dtype=float), B)
+        self.DeclarePeriodicDiscreteUpdateEvent(law.outer_period, 0.0, self._update)
 
     @property
     def period(self) -> float:
@@ -75,21 +73,27 @@ class SteppedHoveringAuv(LeafSystem):
         return context.get_discrete_state(self._vehicle).value()
 
     def _calc_thrust(self, context: Context, output: BasicVector) -> None:
-        if self._dynamics.lag:
-            output.set_value(self._vehicle_state(context)[13:])
-        else:
-            command = context.get_discrete_state(self._states.thrust).value().tolist()
-            output.set_value(self._dynamics.saturate(command))
+        if self._lag:
+            x = self._vehicle_state(context).reshape(self.batch_size, -1)
+            output.set_value(x[:, 13:].ravel())
+        else:  # the held command, saturated as the vehicle applies it
+            command = context.get_discrete_state(self._states.thrust).value()
+            output.set_value(np.clip(command, -self._max_thrust, self._max_thrust))
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        law, step, h = self._law, self._dynamics.step, self._h
-        x = self._vehicle_state(context).tolist()
-        u1, u2 = self._u1_port.Eval(context).tolist(), self._u2_port.Eval(context).tolist()
-        latch = law.latch(context.get_time(), rotation_rows(x[3:7]), x[7:13], u1, u2)
-        ticks = []
-        for j in range(self._ticks):
-            tick = law.tick(j * h, rotation_rows(x[3:7]), x[7:13], latch)
-            x = step(x, tick.thrust, h)
-            ticks.append(tick)
-        discrete_state.set_value(self._vehicle, x)
-        self._states.store(context, discrete_state, tick, latch, saturation_counts(ticks))
+        B, a = self.batch_size, self._law.arrays
+        x = float_rows(self._vehicle_state(context), B)
+        x_next = np.empty_like(x)
+        out = self._states.next_state(context)
+        stepped_runs(
+            context.get_time(),
+            x,
+            float_rows(self._u1_port.Eval(context), B),
+            float_rows(self._u2_port.Eval(context), B),
+            self._states.saturation_counts(context),
+            *a,
+            x_next,
+            *out,
+        )
+        discrete_state.set_value(self._vehicle, x_next.ravel())
+        self._states.store(discrete_state, out)

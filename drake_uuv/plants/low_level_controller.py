@@ -5,7 +5,9 @@ import math
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from drake_uuv.models.vehicle_control import Latch, LowLevelLaw, Tick
+from drake_uuv.models.vehicle_control import LowLevelLaw
+from drake_uuv.models.vehicle_kernels import controller_runs
+from drake_uuv.primitives.batch import batch_size_field, tiled
 from drake_uuv.scenario.plants import HoveringAuv
 
 
@@ -63,8 +65,8 @@ class LowLevelController(LeafSystem):
 
     **Allocation.** ``τ`` goes to the thrusters through ``ThrustAllocator`` (weighted
     pseudo-inverse, attitude first under saturation); the thrusts are held for one fast
-    period (discrete state). The arithmetic of one tick is ``LowLevelLaw``
-    (``drake_uuv/models/vehicle_control.py``).
+    period (discrete state). The parameters of the law are ``LowLevelLaw``
+    (``drake_uuv/models/vehicle_control.py``), its arithmetic ``vehicle_kernels.py``.
 
     .. pydrake_system::
 
@@ -95,23 +97,34 @@ class LowLevelController(LeafSystem):
       parts (1, 1 when every thruster is within its limit).
     - ``saturation_ticks`` (4): counts since the start, of fast ticks and of those whose
       force, moment, or either, the allocation scaled down (the fraction of time saturated).
+
+    Sizes are per run: with ``batch_size`` B every port and state holds B runs row-major
+    (:mod:`drake_uuv.primitives.batch`), each run from ``initial_R_WB``. The tick of every
+    run is one compiled kernel (``vehicle_kernels.controller_runs``); a run's saturation
+    branches are its own.
     """
 
     def __init__(
-        self, config: HoveringAuv, *, outer_period: float, initial_R_WB: np.ndarray
+        self,
+        config: HoveringAuv,
+        *,
+        outer_period: float,
+        initial_R_WB: np.ndarray,
+        batch_size: int = 1,
     ) -> None:
         super().__init__()
+        self.batch_size = B = batch_size_field(batch_size)
         self._law = low_level_law(config, outer_period)
         self._t, self._h = self._law.outer_period, self._law.period
         self._ratio = round(self._t / self._h)
         R0 = np.asarray(initial_R_WB, dtype=float)
         if R0.shape != (3, 3) or not np.allclose(R0.T @ R0, np.eye(3), atol=1e-9):
             raise ValueError(f"initial_R_WB: must be a rotation matrix, got {R0.tolist()!r}")
-        self._u1_port = self.DeclareVectorInputPort("u1_B", 3)
-        self._u2_port = self.DeclareVectorInputPort("u2_W", 3)
-        self._R_port = self.DeclareVectorInputPort("R_WB", 9)
-        self._nu_port = self.DeclareVectorInputPort("nu_B", 6)
-        self._states = ControllerStates(self, self._law.allocator.num_thrusters, R0)
+        self._u1_port = self.DeclareVectorInputPort("u1_B", 3 * B)
+        self._u2_port = self.DeclareVectorInputPort("u2_W", 3 * B)
+        self._R_port = self.DeclareVectorInputPort("R_WB", 9 * B)
+        self._nu_port = self.DeclareVectorInputPort("nu_B", 6 * B)
+        self._states = ControllerStates(self, self._law.allocator.num_thrusters, R0, B)
         self.DeclarePeriodicDiscreteUpdateEvent(self._h, 0.0, self._update)
 
     @property
@@ -128,23 +141,33 @@ class LowLevelController(LeafSystem):
         return self._law.wrench_gains()
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        time = context.get_time()
-        R = rows(self._R_port.Eval(context))
-        nu = self._nu_port.Eval(context).tolist()
-        if round(time / self._h) % self._ratio == 0:
-            # An outer tick: latch the fresh commands and use them at once.
-            u1, u2 = self._u1_port.Eval(context).tolist(), self._u2_port.Eval(context).tolist()
-            latch = fresh = self._law.latch(time, R, nu, u1, u2)
-        else:
-            latch, fresh = self._states.latch(context), None
-        tick = self._law.tick(time - latch.t_k, R, nu, latch)
-        self._states.store(context, discrete_state, tick, fresh, saturation_counts([tick]))
+        time, B, a = context.get_time(), self.batch_size, self._law.arrays
+        # An outer tick (the same for every run): latch the fresh commands and use them at
+        # once; otherwise the latch of the last one holds.
+        fresh = round(time / self._h) % self._ratio == 0
+        out = self._states.next_state(context)
+        controller_runs(
+            time,
+            fresh,
+            float_rows(self._R_port.Eval(context), B),
+            float_rows(self._nu_port.Eval(context), B),
+            float_rows(self._u1_port.Eval(context), B),
+            float_rows(self._u2_port.Eval(context), B),
+            self._states.saturation_counts(context),
+            a.hull,
+            a.values,
+            a.columns,
+            a.pinv,
+            a.law,
+            *out,
+        )
+        self._states.store(discrete_state, out)
 
 
-def rows(R_WB: np.ndarray) -> list[list[float]]:
-    """A row-major 9-vector as 3 rows of Python floats."""
-    r = R_WB.tolist()
-    return [r[0:3], r[3:6], r[6:9]]
+def float_rows(vector: np.ndarray, batch_size: int) -> np.ndarray:
+    """A batched port or state vector as a writable C-contiguous ``(B, n)`` float copy (the
+    compiled kernels' one signature)."""
+    return np.array(vector, dtype=float).reshape(batch_size, -1)
 
 
 def low_level_law(config: HoveringAuv, outer_period: float) -> LowLevelLaw:
@@ -160,24 +183,18 @@ def low_level_law(config: HoveringAuv, outer_period: float) -> LowLevelLaw:
         outer_period=float(outer_period),
         gains=(omega * omega, 2.0 * zeta * omega, config.velocity_bandwidth),
         trajectory=config.attitude_reference == "trajectory",
+        thrust_time_constant=config.thrust_time_constant,
     )
-
-
-def saturation_counts(ticks: list[Tick]) -> list[float]:
-    """Of ``ticks``: how many, and how many had their force, moment, either scaled down."""
-    force = sum(t.force_scale < 1.0 for t in ticks)
-    moment = sum(t.moment_scale < 1.0 for t in ticks)
-    either = sum(min(t.force_scale, t.moment_scale) < 1.0 for t in ticks)
-    return [float(len(ticks)), float(force), float(moment), float(either)]
 
 
 class ControllerStates:
     """The controller's discrete state on ``system`` and the outputs that publish it.
 
-    Groups, declared in this order: the latch ``[a_W, v_WU(kt), R_WB(kt) (9), kt]`` (16), the
-    target ``R(k+1)`` (9), the rate ``u2`` (3), the velocity reference (3), the thrusts (n),
-    the wrench (6), the allocation's scales (2), the saturation counts (4); every group but
-    the latch is published by a state output port (``LowLevelController``'s outputs).
+    Groups, declared in this order, each per run (B runs row-major): the latch
+    ``[a_W, v_WU(kt), R_WB(kt) (9), kt]`` (16), the target ``R(k+1)`` (9), the rate ``u2``
+    (3), the velocity reference (3), the thrusts (n), the wrench (6), the allocation's
+    scales (2), the saturation counts (4); every group but the latch is published by a state
+    output port (``LowLevelController``'s outputs).
     """
 
     #: The state output ports, in the order of the groups they publish.
@@ -191,18 +208,28 @@ class ControllerStates:
         "saturation_ticks",
     )
 
-    def __init__(self, system: LeafSystem, num_thrusters: int, initial_R_WB: np.ndarray) -> None:
-        R0 = initial_R_WB.ravel()
-        self.latch_group = system.DeclareDiscreteState(np.concatenate([np.zeros(6), R0, [0.0]]))
-        self.target = system.DeclareDiscreteState(R0)
-        self.rate = system.DeclareDiscreteState(3)
-        self.velocity = system.DeclareDiscreteState(3)
-        self.thrust = system.DeclareDiscreteState(num_thrusters)
-        self.wrench = system.DeclareDiscreteState(6)
-        self.scale = system.DeclareDiscreteState(np.ones(2))
+    def __init__(
+        self, system: LeafSystem, num_thrusters: int, initial_R_WB: np.ndarray, batch_size: int
+    ) -> None:
+        B, R0 = batch_size, initial_R_WB.ravel()
+        self.batch_size = B
+        self.latch_group = system.DeclareDiscreteState(
+            tiled(np.concatenate([np.zeros(6), R0, [0.0]]), B)
+        )
+        self.target = system.DeclareDiscreteState(tiled(R0, B))
+        self.rate = system.DeclareDiscreteState(3 * B)
+        self.velocity = system.DeclareDiscreteState(3 * B)
+        self.thrust = system.DeclareDiscreteState(num_thrusters * B)
+        self.wrench = system.DeclareDiscreteState(6 * B)
+        self.scale = system.DeclareDiscreteState(np.ones(2 * B))
         # Counts for the run's statistics: fast ticks, and those whose force, moment, either
         # the allocation had to scale down (a thruster at its limit).
-        self.saturation = system.DeclareDiscreteState(np.zeros(4))
+        self.saturation = system.DeclareDiscreteState(np.zeros(4 * B))
+        # The groups a kernel writes, in its argument order (controller_runs, stepped_runs).
+        self.written = (
+            self.latch_group, self.target, self.rate, self.velocity, self.thrust, self.wrench,
+            self.scale, self.saturation,
+        )  # fmt: skip
         published = (
             self.thrust, self.target, self.rate, self.velocity, self.wrench, self.scale,
             self.saturation,
@@ -210,36 +237,19 @@ class ControllerStates:
         for name, group in zip(self.OUTPUTS, published, strict=True):
             system.DeclareStateOutputPort(name, group)
 
-    def latch(self, context: Context) -> Latch:
-        """The latch of the last outer tick."""
-        latch, target, rate = (
-            context.get_discrete_state(group).value()
-            for group in (self.latch_group, self.target, self.rate)
-        )
-        a_W, v_k, R_k, t_k = latch[:3], latch[3:6], latch[6:15], latch[15]
-        return Latch(a_W.tolist(), v_k.tolist(), rows(R_k), float(t_k), rate.tolist(),
-                     rows(target))  # fmt: skip
+    def next_state(self, context: Context) -> list[np.ndarray]:
+        """Writable ``(B, size)`` copies of the groups a kernel writes, holding their values
+        now (a kernel that does not latch leaves the latch as it was)."""
+        return [
+            float_rows(context.get_discrete_state(group).value(), self.batch_size)
+            for group in self.written
+        ]
 
-    def store(
-        self,
-        context: Context,
-        discrete_state: DiscreteValues,
-        tick: Tick,
-        latch: Latch | None,
-        counts: list[float],
-    ) -> None:
-        """Writes the last tick's outputs, a fresh latch if given, and adds ``counts``."""
-        if latch is not None:
-            R_k, R_target = latch.R_k, latch.R_target
-            discrete_state.set_value(
-                self.latch_group, [*latch.a_W, *latch.v_k, *R_k[0], *R_k[1], *R_k[2], latch.t_k]
-            )
-            discrete_state.set_value(self.target, [*R_target[0], *R_target[1], *R_target[2]])
-            discrete_state.set_value(self.rate, latch.u2)
-        discrete_state.set_value(self.thrust, tick.thrust)
-        discrete_state.set_value(self.velocity, tick.v_ref)
-        discrete_state.set_value(self.wrench, tick.wrench)
-        discrete_state.set_value(self.scale, [tick.force_scale, tick.moment_scale])
-        discrete_state.set_value(
-            self.saturation, context.get_discrete_state(self.saturation).value() + counts
-        )
+    def saturation_counts(self, context: Context) -> np.ndarray:
+        """The counts so far, ``(B, 4)``."""
+        return float_rows(context.get_discrete_state(self.saturation).value(), self.batch_size)
+
+    def store(self, discrete_state: DiscreteValues, values: list[np.ndarray]) -> None:
+        """Writes ``values`` (as from :meth:`next_state`, after the kernel) to the groups."""
+        for group, value in zip(self.written, values, strict=True):
+            discrete_state.set_value(group, value.ravel())

@@ -5,9 +5,11 @@ from collections.abc import Callable
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, ContinuousState, LeafSystem
 
-from drake_uuv.models.marine_vehicle import MarineVehicleModel, rotation_from_quaternion
+from drake_uuv.models.marine_vehicle import MarineVehicleModel
 from drake_uuv.models.so3 import quaternion_from_matrix
 from drake_uuv.models.vehicle_dynamics import VehicleDynamics
+from drake_uuv.models.vehicle_kernels import attitude_runs
+from drake_uuv.primitives.batch import batch_size_field, tiled
 from drake_uuv.scenario.plants import HoveringAuv
 
 # Slices of the state [p_WU (3), q_WB (4), ν_B (6), applied thrust (n, with a lag)].
@@ -53,36 +55,51 @@ def vehicle_initial_state(
 
 
 def declare_vehicle_outputs(
-    system: LeafSystem, state: Callable[[Context], np.ndarray], prerequisites: set
+    system: LeafSystem,
+    state: Callable[[Context], np.ndarray],
+    prerequisites: set,
+    batch_size: int = 1,
 ) -> None:
     """Declares ``p_WU``, ``v_WU``, ``R_WB``, ``w_WB``, ``nu_B`` on ``system``, computed from
-    the state ``[p_WU, q_WB, ν_B, …]`` that ``state(context)`` returns (see ``MarineVehicle``)."""
+    the state ``[p_WU, q_WB, ν_B, …]`` of each of ``batch_size`` runs that ``state(context)``
+    returns row-major (see ``MarineVehicle``)."""
+    B = batch_size
+
+    def runs(context: Context) -> np.ndarray:
+        return np.array(state(context), dtype=float).reshape(B, -1)
 
     def position(context: Context, output: BasicVector) -> None:
-        output.set_value(state(context)[_P])
+        output.set_value(runs(context)[:, _P].ravel())
 
-    def velocity(context: Context, output: BasicVector) -> None:
-        x = state(context)
-        output.set_value(rotation_from_quaternion(x[_Q]) @ x[_V])
+    def rotations(x: np.ndarray) -> np.ndarray:
+        R = np.empty((B, 9))
+        attitude_runs(x, R)
+        return R
+
+    def world_vector(body: slice) -> Callable[[Context, BasicVector], None]:
+        # numpy's matrix product over the stack: each run's bits are those of R @ v alone
+        # (the product these outputs always had; a sum in numba rounds differently).
+        def calc(context: Context, output: BasicVector) -> None:
+            x = runs(context)
+            R = rotations(x).reshape(B, 3, 3)
+            output.set_value((R @ x[:, body, None]).ravel())
+
+        return calc
 
     def attitude(context: Context, output: BasicVector) -> None:
-        output.set_value(rotation_from_quaternion(state(context)[_Q]).ravel())
-
-    def angular_velocity(context: Context, output: BasicVector) -> None:
-        x = state(context)
-        output.set_value(rotation_from_quaternion(x[_Q]) @ x[_W])
+        output.set_value(rotations(runs(context)).ravel())
 
     def body_velocity(context: Context, output: BasicVector) -> None:
-        output.set_value(state(context)[_NU])
+        output.set_value(runs(context)[:, _NU].ravel())
 
     for name, size, calc in (
         ("p_WU", 3, position),
-        ("v_WU", 3, velocity),
+        ("v_WU", 3, world_vector(_V)),
         ("R_WB", 9, attitude),
-        ("w_WB", 3, angular_velocity),
+        ("w_WB", 3, world_vector(_W)),
         ("nu_B", 6, body_velocity),
     ):
-        system.DeclareVectorOutputPort(name, size, calc, prerequisites)
+        system.DeclareVectorOutputPort(name, size * B, calc, prerequisites)
 
 
 class MarineVehicle(LeafSystem):
@@ -123,6 +140,13 @@ class MarineVehicle(LeafSystem):
     - ``w_WB`` (3): angular velocity in the world frame, ``R_WB ω_B`` [rad/s].
     - ``nu_B`` (6): body velocity ``[v_B, ω_B]`` [m/s, rad/s].
     - ``thrust`` (n): applied thrusts after saturation and lag [N].
+
+    Sizes are per run: with ``batch_size`` B every port and the continuous state hold B runs
+    row-major (:mod:`drake_uuv.primitives.batch`), each from the given initial state; the
+    derivative of every run is one compiled kernel (``vehicle_kernels.derivative_runs``).
+    Drake's error-controlled integrators choose one step for the whole state, so under
+    ``runge_kutta5`` the runs of a batch share their steps: each run's derivative is its
+    own, its trajectory agrees with the run alone only to the integrator's accuracy.
     """
 
     def __init__(
@@ -133,8 +157,10 @@ class MarineVehicle(LeafSystem):
         initial_velocity: np.ndarray,
         initial_R_WB: np.ndarray,
         initial_angular_velocity: np.ndarray | None = None,
+        batch_size: int = 1,
     ) -> None:
         super().__init__()
+        self.batch_size = B = batch_size_field(batch_size)
         self._dynamics = VehicleDynamics(
             config.vehicle_model(), config.allocator(), config.thrust_time_constant
         )
@@ -147,12 +173,12 @@ class MarineVehicle(LeafSystem):
             initial_angular_velocity,
             self._n if self._lag else 0,
         )
-        self.DeclareContinuousState(BasicVector(x0))
-        self._thrust_port = self.DeclareVectorInputPort("thrust_command", self._n)
+        self.DeclareContinuousState(BasicVector(tiled(x0, B)))
+        self._thrust_port = self.DeclareVectorInputPort("thrust_command", self._n * B)
         state_only = {self.xc_ticket()}
-        declare_vehicle_outputs(self, self._state, state_only)
+        declare_vehicle_outputs(self, self._state, state_only, B)
         thrust_prerequisites = state_only if self._lag else {self._thrust_port.ticket()}
-        self.DeclareVectorOutputPort("thrust", self._n, self._calc_thrust, thrust_prerequisites)
+        self.DeclareVectorOutputPort("thrust", self._n * B, self._calc_thrust, thrust_prerequisites)
 
     @property
     def model(self) -> MarineVehicleModel:
@@ -167,16 +193,18 @@ class MarineVehicle(LeafSystem):
         return context.get_continuous_state_vector().CopyToVector()
 
     def applied_thrust(self, context: Context) -> np.ndarray:
-        """The thrusts acting on the hull now: the lag state, or the saturated command."""
+        """The thrusts acting on the hull now (B·n): the lag state, or the saturated command."""
         if self._lag:
-            return self._state(context)[13:]
+            return self._state(context).reshape(self.batch_size, -1)[:, 13:].ravel()
         f_max = self._dynamics.max_thrust
         return np.clip(self._thrust_port.Eval(context), -f_max, f_max)
 
     def DoCalcTimeDerivatives(self, context: Context, derivatives: ContinuousState) -> None:
-        x = context.get_continuous_state_vector().CopyToVector().tolist()
-        command = self._thrust_port.Eval(context).tolist()
-        derivatives.get_mutable_vector().SetFromVector(self._dynamics.derivative(x, command))
+        B = self.batch_size
+        x = self._state(context).reshape(B, -1)
+        command = np.array(self._thrust_port.Eval(context), dtype=float).reshape(B, -1)
+        x_dot = self._dynamics.derivative_runs(x, command)
+        derivatives.get_mutable_vector().SetFromVector(x_dot.ravel())
 
     def _calc_thrust(self, context: Context, output: BasicVector) -> None:
         output.set_value(self.applied_thrust(context))
