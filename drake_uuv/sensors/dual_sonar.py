@@ -90,8 +90,8 @@ class DualSonar(Diagram):
     - ``b_W`` (3): the tick's true world baseline ``q_s = R_WB b`` (so ``C(k) = [q_sᵀ, 0]``).
     - ``sonar_status`` (2): per sonar, ``VALID``, ``DROPPED``, ``OUT_OF_BEAM``,
       ``OUT_OF_RANGE``, or ``NO_ARRIVAL`` (no ping of the sonar is due at this tick: the first
-      ticks with latency). A sonar without a return has NaN ranges, and ``Y``, ``m``,
-      ``Gamma`` are NaN unless both returned.
+      ticks with latency). A sonar without a return has NaN ranges, and ``Y`` and ``Gamma``
+      are NaN unless both returned (``m`` is the noise model's constant).
     - ``multipath`` (2): ground truth for analysis, the excess added to each sonar's return.
     - ``ping_time`` (2) [s]: when each arriving range's ping was sent (NaN with NO_ARRIVAL).
     - ``p_TS_W`` (6) [m]: ground truth, each arriving range's sonar from the target at its
@@ -103,8 +103,8 @@ class DualSonar(Diagram):
     paper's, the default) the range is measured at the tick from the inputs (direct
     feedthrough, no state). Otherwise the sonar keeps the previous tick's geometry (the truth
     and the estimator's prediction) as discrete state: at tick k+1 it measures the ping of
-    step k from the geometry of ticks k and k+1 (:func:`~drake_uuv.sensors.sonar_timing.
-    ping_between`: Hermite positions, geodesic attitude), with the noise drawn at tick k+1,
+    step k from the geometry of ticks k and k+1 (:func:`~drake_uuv.sensors.sonar_kernels.
+    measure`: Hermite positions, geodesic attitude), with the noise drawn at tick k+1,
     and holds it in a FIFO (discrete state) until tick ``k + d_i``; the velocity inputs exist
     only then. The interpolation is exact for the kinematic plant and the target (constant
     acceleration and world rate over a step); for the hovering UUV, a continuous plant, it
@@ -119,8 +119,8 @@ class DualSonar(Diagram):
     **Faults** (:class:`~drake_uuv.sensors.sonar_faults.SonarFaults`, all off by default)
     apply to each ping's own geometry and add ports only when switched on: ``x_TU_prior``
     (6) and ``P_TU_prior`` (36), the estimator's prediction of the ping's tick, which the
-    pan-tilts point at (by the attitude of
-    :func:`~drake_uuv.sensors.sonar_faults.pointing_attitude`); the random ports
+    pan-tilts point at (by the navigated attitude ``R_WB_nav`` (9);
+    :func:`~drake_uuv.sensors.sonar_kernels.beam_axis`); the random ports
     ``fault_uniform`` (4, uniform: dropout then outlier draws per sonar) and
     ``multipath_noise`` (2, exponential), drawn when the ping is measured.
 
