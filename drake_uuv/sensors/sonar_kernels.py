@@ -7,12 +7,13 @@ computed alone by scalar code, so its bits do not depend on B or on its place in
 and a NaN run cannot raise (``error_model="numpy"``: a division by zero gives inf or NaN).
 
 The arithmetic follows the single-run numpy of before operation by operation: a 3-vector dot
-product is the fused multiply-add chain of the BLAS ``ddot`` that ``p @ p`` calls
-(:func:`dot3`), a sum of f squares is numpy's pairwise summation (:func:`_pairwise_sum`), and
-the world baseline ``R_WB b`` of the tick is computed by numpy before the call (BLAS, as
-before). So the plain sonar at B = 1 gives the bits it gave before. Rotations interpolated
-between ticks (:func:`interpolate_attitude`) multiply 3×3 matrices without fused operations:
-their last bits differ from the BLAS products of before.
+product is the fused multiply-add chain of the BLAS ``ddot`` that ``p @ p`` calls (OpenBLAS's
+kernel on an FMA CPU; :func:`dot3`), a sum of f squares is numpy's pairwise summation
+(:func:`_pairwise_sum`), and the world baseline ``R_WB b`` of the tick is computed by numpy
+before the call (BLAS, as before). So the sonar at the paper's timing, with or without
+faults, gives at B = 1 the bits it gave before. Rotations interpolated between ticks
+(:func:`interpolate_attitude`) multiply 3×3 matrices without fused operations: their last
+bits differ from the BLAS products of before (a range by ~1e-13 m).
 
 Layouts (per run): the previous tick's geometry is :class:`~drake_uuv.sensors.sonar_timing.
 TickGeometry`'s vector (35); a ping's entry (a FIFO slot) is f samples, status, multipath,
@@ -34,7 +35,8 @@ from drake_uuv.models.measurement import (
     VALID,
 )
 
-#: Indices of the kernels' float settings (:func:`settings_vector`).
+#: Indices of the kernels' float settings (a vector of :data:`SETTINGS_SIZE` that
+#: :class:`~drake_uuv.sensors.dual_sonar.SonarMeasurement` fills once).
 (TIME_STEP, TAU1, TAU2, SCALE, SIGMA1, SIGMA2, ETA1, ETA2, M, GAMMA_CONSTANT, PAPER_PRINTED,
  MAX_RANGE, BEAM_HALF_ANGLE, DROPOUT1, DROPOUT2, OUTLIER_PROBABILITY, OUTLIER_SCALE, B0, B1,
  B2) = range(20)  # fmt: skip
