@@ -164,9 +164,10 @@ TIMINGS = [
 
 @pytest.mark.parametrize(("offsets", "latency"), TIMINGS)
 @pytest.mark.parametrize("samples_per_step", [1, 3])
+@pytest.mark.parametrize("noise_model", ["derived", "paper_printed"])
 @pytest.mark.parametrize("batch_size", [1, 2, 5])
 def test_the_timed_sonar_s_batch_is_each_run_alone(
-    offsets: list[float], latency: float, samples_per_step: int, batch_size: int
+    offsets: list[float], latency: float, samples_per_step: int, noise_model: str, batch_size: int
 ) -> None:
     """Outputs and next state (the tick's geometry, the FIFOs) from random previous
     geometry and FIFO entries: some runs at their first tick, the others pinging between
@@ -179,7 +180,7 @@ def test_the_timed_sonar_s_batch_is_each_run_alone(
         latency=latency,
         sound_speed_error=-0.01,
     )
-    sonar = make(config)
+    sonar = make(config, noise_model)
     values = random_inputs(rng, batch_size, config)
     inputs = ports_of(sonar(1), values)
     states = random_states(rng, sonar(batch_size), values)
