@@ -1,8 +1,6 @@
 """Two monostatic sonars at ±½ b about the body origin, and the linear measurement Y."""
 
-import copy
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common import RandomDistribution
@@ -18,44 +16,24 @@ from pydrake.systems.framework import (
 )
 from pydrake.systems.primitives import Demultiplexer
 
-from drake_uuv.models.measurement import NO_ARRIVAL, VALID, range_difference_noise
+from drake_uuv.models.measurement import range_difference_noise
+from drake_uuv.primitives.batch import batch_size_field, per_run, tiled
 from drake_uuv.primitives.random_input import declare_random_input, export_random_inputs
 from drake_uuv.primitives.setting import time_step_field
 from drake_uuv.scenario.schema import SonarConfig
-from drake_uuv.sensors.sonar_faults import SonarFaults, geometry_status, random_faults
+from drake_uuv.sensors import sonar_kernels as kernels
+from drake_uuv.sensors.sonar_faults import SonarFaults
 from drake_uuv.sensors.sonar_timing import (
-    PingGeometry,
-    Pings,
     TickGeometry,
     arrival_delays,
-    fifo_push,
-    ping_between,
-    tick_ping,
+    entry_size,
+    no_arrival_entry,
 )
-
-_NAN = math.nan
-_NAN3 = np.full(3, math.nan)
-_NAN3.setflags(write=False)
-
-
-def _clip_at_zero(x: float) -> float:
-    """``np.maximum(x, 0.0)`` for a float (NaN stays NaN)."""
-    return x if x > 0.0 or x != x else 0.0
-
-
-@dataclass
-class _Measurement:
-    arrivals: Pings  # the ranges arriving at this tick
-    Y: float  # NaN unless both sonars' ranges arrived and returned
-    m: float
-    Gamma: float
-    b_W: np.ndarray  # (3,) the tick's world baseline
-    measured: Pings  # the pings measured at this tick (those a FIFO takes in)
-    tick: TickGeometry | None  # this tick's geometry, with timing (the next tick's previous)
 
 
 def output_layout(samples_per_step: int) -> tuple[tuple[str, int], ...]:
-    """The sonar's output ports and their sizes, in the order of the packed ``measurement``."""
+    """The sonar's output ports and their sizes per run, in the order of the packed
+    ``measurement`` (each output's block holds all B runs)."""
     f = samples_per_step
     return (
         ("ranges", 2), ("range_samples", 2 * f), ("Y", 1), ("m", 1), ("Gamma", 1), ("b_W", 3),
@@ -112,8 +90,8 @@ class DualSonar(Diagram):
     - ``b_W`` (3): the tick's true world baseline ``q_s = R_WB b`` (so ``C(k) = [q_sᵀ, 0]``).
     - ``sonar_status`` (2): per sonar, ``VALID``, ``DROPPED``, ``OUT_OF_BEAM``,
       ``OUT_OF_RANGE``, or ``NO_ARRIVAL`` (no ping of the sonar is due at this tick: the first
-      ticks with latency). A sonar without a return has NaN ranges, and ``Y``, ``m``,
-      ``Gamma`` are NaN unless both returned.
+      ticks with latency). A sonar without a return has NaN ranges, and ``Y`` and ``Gamma``
+      are NaN unless both returned (``m`` is the noise model's constant).
     - ``multipath`` (2): ground truth for analysis, the excess added to each sonar's return.
     - ``ping_time`` (2) [s]: when each arriving range's ping was sent (NaN with NO_ARRIVAL).
     - ``p_TS_W`` (6) [m]: ground truth, each arriving range's sonar from the target at its
@@ -125,8 +103,8 @@ class DualSonar(Diagram):
     paper's, the default) the range is measured at the tick from the inputs (direct
     feedthrough, no state). Otherwise the sonar keeps the previous tick's geometry (the truth
     and the estimator's prediction) as discrete state: at tick k+1 it measures the ping of
-    step k from the geometry of ticks k and k+1 (:func:`~drake_uuv.sensors.sonar_timing.
-    ping_between`: Hermite positions, geodesic attitude), with the noise drawn at tick k+1,
+    step k from the geometry of ticks k and k+1 (:func:`~drake_uuv.sensors.sonar_kernels.
+    measure`: Hermite positions, geodesic attitude), with the noise drawn at tick k+1,
     and holds it in a FIFO (discrete state) until tick ``k + d_i``; the velocity inputs exist
     only then. The interpolation is exact for the kinematic plant and the target (constant
     acceleration and world rate over a step); for the hovering UUV, a continuous plant, it
@@ -141,8 +119,8 @@ class DualSonar(Diagram):
     **Faults** (:class:`~drake_uuv.sensors.sonar_faults.SonarFaults`, all off by default)
     apply to each ping's own geometry and add ports only when switched on: ``x_TU_prior``
     (6) and ``P_TU_prior`` (36), the estimator's prediction of the ping's tick, which the
-    pan-tilts point at (by the attitude of
-    :func:`~drake_uuv.sensors.sonar_faults.pointing_attitude`); the random ports
+    pan-tilts point at (by the navigated attitude ``R_WB_nav`` (9);
+    :func:`~drake_uuv.sensors.sonar_kernels.beam_axis`); the random ports
     ``fault_uniform`` (4, uniform: dropout then outlier draws per sonar) and
     ``multipath_noise`` (2, exponential), drawn when the ping is measured.
 
@@ -153,19 +131,28 @@ class DualSonar(Diagram):
     the builder passes from the scenario's estimator section; ``time_step`` is the period t
     [s] of the loop's ticks.
 
-    Inside, a :class:`SonarMeasurement` (``measurement``) computes every output of a tick in
-    one call, and a Drake ``Demultiplexer`` (``outputs``) splits it into the ports: one Python
-    call per tick however many of them are read.
+    Sizes are per run: with ``batch_size`` B every port and state holds B runs row-major
+    (:mod:`drake_uuv.primitives.batch`), each run measured alone (its bits do not depend on
+    B or its place in the batch; a run with NaN or inf inputs or state gives NaN to itself
+    only). The state's initial value (no tick seen, empty FIFOs) is the same for every run.
+
+    Inside, a :class:`SonarMeasurement` (``measurement``) computes every output of a tick for
+    every run in one call, and a Drake ``Demultiplexer`` (``outputs``) splits it into the
+    ports: one Python call per tick however many of them are read.
     """
 
-    def __init__(self, config: SonarConfig, *, noise_model: str, time_step: float) -> None:
+    def __init__(
+        self, config: SonarConfig, *, noise_model: str, time_step: float, batch_size: int = 1
+    ) -> None:
         super().__init__()
+        self.batch_size = B = batch_size_field(batch_size)
         builder = DiagramBuilder()
         model = builder.AddNamedSystem(
-            "measurement", SonarMeasurement(config, noise_model=noise_model, time_step=time_step)
+            "measurement",
+            SonarMeasurement(config, noise_model=noise_model, time_step=time_step, batch_size=B),
         )
         layout = output_layout(config.samples_per_step)
-        split = builder.AddNamedSystem("outputs", Demultiplexer([size for _, size in layout]))
+        split = builder.AddNamedSystem("outputs", Demultiplexer([B * n for _, n in layout]))
         builder.Connect(model.get_output_port(), split.get_input_port())
         for i in range(model.num_input_ports()):
             port = model.get_input_port(i)
@@ -199,93 +186,127 @@ class SonarMeasurement(LeafSystem):
                       multipath_noise (with dropouts or outliers)]
         output_ports: [measurement]
 
-    The inputs are :class:`DualSonar`'s; ``measurement`` holds its outputs end to end in the
-    order of :func:`output_layout`. Without timing the output is computed from the inputs at
-    once; with timing, from a cache entry the update shares.
+    The inputs are :class:`DualSonar`'s, B runs row-major each; ``measurement`` holds its
+    outputs one after the other in the order of :func:`output_layout`, each output's block
+    the B runs row-major (``ranges`` of every run, then ``range_samples`` of every run, …),
+    so that a ``Demultiplexer`` cuts it into :class:`DualSonar`'s ports. Without timing the
+    output is computed from the inputs at once; with timing, from a cache entry the update
+    shares (the outputs, this tick's geometry and the FIFOs moved on). The arithmetic is
+    :mod:`~drake_uuv.sensors.sonar_kernels`': one kernel call per tick for all runs.
     """
 
-    def __init__(self, config: SonarConfig, *, noise_model: str, time_step: float) -> None:
+    def __init__(
+        self, config: SonarConfig, *, noise_model: str, time_step: float, batch_size: int = 1
+    ) -> None:
         super().__init__()
-        self._faults = SonarFaults.from_config(config)
+        self.batch_size = B = batch_size_field(batch_size)
+        self._faults = faults = SonarFaults.from_config(config)
         self._b = np.asarray(config.baseline, dtype=float)
-        self._eta = np.asarray(config.noise_variances, dtype=float)
-        self._sigma = np.sqrt(self._eta)[:, np.newaxis]
-        self._f = int(config.samples_per_step)
-        self._noise_model = noise_model
-        range_difference_noise(noise_model, self._eta, np.ones(2))  # Fail early on a bad model.
-        # The derived model's constants, computed as range_difference_noise computes them.
-        self._derived_m, gamma_at_zero = range_difference_noise(
-            "derived", self._eta, np.zeros(2) + self._eta
-        )
-        self._derived_gamma_floor = float(gamma_at_zero)
-        self._derived_m = float(self._derived_m)
-        self._eta_floats = tuple(float(e) for e in self._eta)
-        self._scale = 1.0 + float(config.sound_speed_error)
+        eta = np.asarray(config.noise_variances, dtype=float)
+        self._f = f = int(config.samples_per_step)
+        range_difference_noise(noise_model, eta, np.ones(2))  # Fail early on a bad model.
         self._time_step = time_step_field(time_step)
         self._tau = tuple(float(tau) for tau in config.ping_offsets)
         self._delays = arrival_delays(self._tau, float(config.latency), self._time_step)
+        self._settings = self._settings_vector(config, noise_model, eta)
+        self._timed = max(self._delays) > 0
+        self._beam = faults.beam_half_angle is not None
+        self._random = faults.random_faults
 
-        self._uuv_port = self.DeclareVectorInputPort("p_WU", 3)
-        self._attitude_port = self.DeclareVectorInputPort("R_WB", 9)
-        self._target_port = self.DeclareVectorInputPort("p_WT", 3)
+        self._uuv_port = self.DeclareVectorInputPort("p_WU", 3 * B)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB", 9 * B)
+        self._target_port = self.DeclareVectorInputPort("p_WT", 3 * B)
         self._noise_port = declare_random_input(
-            self, "range_noise", 2 * self._f, RandomDistribution.kGaussian
+            self, "range_noise", 2 * f, RandomDistribution.kGaussian, batch_size=B
         )
-        self._prior_port = self._prior_covariance_port = None
-        if self._faults.beam_half_angle is not None:
-            self._prior_port = self.DeclareVectorInputPort("x_TU_prior", 6)
+        if self._beam:
+            self._prior_port = self.DeclareVectorInputPort("x_TU_prior", 6 * B)
             # The pan-tilts point by the attitude the vehicle believes it has.
-            self._pointing_attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
-            self._prior_covariance_port = self.DeclareVectorInputPort("P_TU_prior", 36)
-        if self._faults.random_faults:
+            self._pointing_attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9 * B)
+            self._prior_covariance_port = self.DeclareVectorInputPort("P_TU_prior", 36 * B)
+        if self._random:
             self._uniform_port = declare_random_input(
-                self, "fault_uniform", 4, RandomDistribution.kUniform
+                self, "fault_uniform", 4, RandomDistribution.kUniform, batch_size=B
             )
             self._multipath_port = declare_random_input(
-                self, "multipath_noise", 2, RandomDistribution.kExponential
+                self, "multipath_noise", 2, RandomDistribution.kExponential, batch_size=B
             )
+        self._size = size = B * sum(n for _, n in output_layout(f))
         self._declare_timing()
-        # With timing, the output and the update share one measurement per context.
-        nan2 = np.full(2, math.nan)
-        empty = Pings(np.zeros((2, self._f)), nan2, nan2, nan2, np.zeros((2, 3)))
-        self._measurement = self.DeclareCacheEntry(
-            "measurement",
-            ValueProducer(
-                allocate=AbstractValue.Make(
-                    _Measurement(empty, 0.0, 0.0, 0.0, np.zeros(3), empty, None)
-                ).Clone,
-                calc=self._calc_measurement,
-            ),
-            {self.all_sources_ticket()},
-        )
-        size = sum(n for _, n in output_layout(self._f))
-        if self._timed:  # the update reads the same measurement
-            self.DeclareVectorOutputPort(
-                "measurement", size, self._calc_timed_output, {self._measurement.ticket()}
+        # The kernel's arrays of a feature that is off (never read), and its switches; a
+        # state's stand-in read-only as the state is (one compiled signature).
+        self._unused = np.zeros((B, 0))
+        self._unused_state = np.zeros((B, 0))
+        self._unused_state.setflags(write=False)
+        self._flags = np.array([self._timed, self._beam, self._random], dtype=np.int64)
+        self._delay_array = np.array(self._delays, dtype=np.int64)
+        if self._timed:  # the output and the update share one measurement per context
+            self._step = self.DeclareCacheEntry(
+                "step",
+                ValueProducer(
+                    allocate=AbstractValue.Make(BasicVector(size + self._state_size)).Clone,
+                    calc=self._calc_step,
+                ),
+                {self.all_sources_ticket()},
             )
-        else:
-            # Without timing, faults or a beam every ping is at the tick and every range
-            # returns: the output straight from the inputs (the same arithmetic, no pings).
-            plain = self._prior_port is None and self._faults.max_range is None
-            plain = plain and not self._faults.random_faults
-            calc = self._calc_plain_output if plain else self._calc_output
-            self.DeclareVectorOutputPort("measurement", size, calc, {self.all_sources_ticket()})
+            self.DeclareVectorOutputPort(
+                "measurement", size, self._calc_timed_output, {self._step.ticket()}
+            )
+            self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._advance)
+            return
+        # Without timing, faults or a beam every ping is at the tick and every range returns:
+        # the paper's sonar, a kernel of its own (the same arithmetic, fewer arguments).
+        plain = not (self._beam or self._random or faults.max_range is not None)
+        calc = self._calc_plain_output if plain else self._calc_output
+        self.DeclareVectorOutputPort("measurement", size, calc, {self.all_sources_ticket()})
+
+    def _settings_vector(
+        self, config: SonarConfig, noise_model: str, eta: np.ndarray
+    ) -> np.ndarray:
+        """The kernels' float settings (:data:`~drake_uuv.sensors.sonar_kernels.SETTINGS_SIZE`)."""
+        k, faults = kernels, self._faults
+        settings = np.zeros(k.SETTINGS_SIZE)
+        settings[k.TIME_STEP] = self._time_step
+        settings[k.TAU1], settings[k.TAU2] = self._tau
+        settings[k.SCALE] = 1.0 + float(config.sound_speed_error)
+        settings[k.SIGMA1 : k.SIGMA2 + 1] = np.sqrt(eta)
+        settings[k.ETA1 : k.ETA2 + 1] = eta
+        # m and Γ's constant term, as range_difference_noise computes them (Γ at zero ranges).
+        m, gamma_constant = range_difference_noise(noise_model, eta, np.zeros(2) + eta)
+        if noise_model == "paper_printed":
+            gamma_constant = 2 * eta[0] ** 2 + 2 * eta[1] ** 2
+        settings[k.M], settings[k.GAMMA_CONSTANT] = m, gamma_constant
+        settings[k.PAPER_PRINTED] = noise_model == "paper_printed"
+        settings[k.MAX_RANGE] = math.inf if faults.max_range is None else faults.max_range
+        half_angle = faults.beam_half_angle
+        settings[k.BEAM_HALF_ANGLE] = math.nan if half_angle is None else half_angle
+        settings[k.DROPOUT1 : k.DROPOUT2 + 1] = faults.dropout_probability
+        settings[k.OUTLIER_PROBABILITY] = faults.outlier_probability
+        settings[k.OUTLIER_SCALE] = faults.outlier_scale
+        settings[k.B0 : k.B2 + 1] = self._b
+        return settings
 
     def _declare_timing(self) -> None:
         """With timing: the velocity inputs, the previous tick's geometry, one FIFO per sonar
-        whose ranges wait a tick or more after they are measured, and the update."""
-        self._timed = max(self._delays) > 0
+        whose ranges wait a tick or more after they are measured (all per run)."""
+        B, E = self.batch_size, entry_size(self._f)
         self._fifo_index: dict[int, int] = {}
+        self._state_size = 0
         if not self._timed:
             return
-        self._uuv_velocity_port = self.DeclareVectorInputPort("v_WU", 3)
-        self._target_velocity_port = self.DeclareVectorInputPort("v_WT", 3)
-        self._previous_index = self.DeclareDiscreteState(TickGeometry.before_start().to_vector())
+        self._uuv_velocity_port = self.DeclareVectorInputPort("v_WU", 3 * B)
+        self._target_velocity_port = self.DeclareVectorInputPort("v_WT", 3 * B)
+        self._previous_index = self.DeclareDiscreteState(
+            tiled(TickGeometry.before_start().to_vector(), B)
+        )
+        self._state_size = B * TickGeometry.SIZE
+        self._fifo_sizes = [0, 0]
         for i, d in enumerate(self._delays):
             if d >= 2:  # a ping of step k is measured at tick k + 1 and read at k + d
-                empty = Pings.no_arrival_entry(self._f)
-                self._fifo_index[i] = self.DeclareDiscreteState(np.tile(empty, d - 1))
-        self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._advance)
+                empty = np.tile(no_arrival_entry(self._f), d - 1)
+                self._fifo_index[i] = self.DeclareDiscreteState(tiled(empty, B))
+                self._fifo_sizes[i] = (d - 1) * E
+                self._state_size += B * (d - 1) * E
 
     @property
     def faults(self) -> SonarFaults:
@@ -296,156 +317,89 @@ class SonarMeasurement(LeafSystem):
         """``(d_1, d_2)``: the ticks from each sonar's step to the arrival of its range."""
         return self._delays
 
-    def _calc_measurement(self, context: Context, value: AbstractValue) -> None:
-        value.set_value(self._measurement_at(context))
-
-    def _calc_output(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._packed(self._measurement_at(context)))
-
-    def _calc_timed_output(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._packed(self._measurement.Eval(context)))
+    def _tick_inputs(self, context: Context) -> tuple[np.ndarray, ...]:
+        """``q_s`` (by numpy's BLAS, as before), ``p_WU``, ``R_WB``, ``p_WT`` and the noise,
+        (B, n) each."""
+        B = self.batch_size
+        R_WB = per_run(self._attitude_port.Eval(context), B)
+        q_s = R_WB.reshape(B, 3, 3) @ self._b
+        return (
+            q_s,
+            per_run(self._uuv_port.Eval(context), B),
+            R_WB,
+            per_run(self._target_port.Eval(context), B),
+            per_run(self._noise_port.Eval(context), B),
+        )
 
     def _calc_plain_output(self, context: Context, output: BasicVector) -> None:
-        """:meth:`_calc_output` of a sonar without timing, faults or a beam: both pings at
-        the tick (:func:`tick_ping`'s ``q ± ½ q_s``), both ranges returned, status VALID."""
-        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        q_s = R_WB @ self._b
-        q = self._uuv_port.Eval(context) - self._target_port.Eval(context)
-        half = 0.5 * q_s
-        p_TS_W = (q + half, q + -half)
-        true_ranges = np.array([math.sqrt(float(p @ p)) for p in p_TS_W])
-        measured = true_ranges if self._scale == 1.0 else self._scale * true_ranges
-        noise = self._noise_port.Eval(context).reshape(2, self._f)
-        samples = measured[:, np.newaxis] + self._sigma * noise
-        Y, m, gamma = self._paper_measurement(samples)
-        now = context.get_time()
-        output.set_value(
-            np.concatenate(
-                (
-                    samples[:, 0], samples.ravel(), (Y, m, gamma), q_s,
-                    (0.0, 0.0, 0.0, 0.0, now, now), p_TS_W[0], p_TS_W[1],
-                )
-            )
-        )  # fmt: skip
-
-    @staticmethod
-    def _packed(measurement: _Measurement) -> np.ndarray:
-        """The outputs of :func:`output_layout`, end to end."""
-        a = measurement.arrivals
-        return np.concatenate(
-            (
-                a.samples[:, 0], a.samples.ravel(),
-                (measurement.Y, measurement.m, measurement.Gamma), measurement.b_W,
-                a.status, a.multipath, a.time, a.p_TS_W.ravel(),
-            )
-        )  # fmt: skip
-
-    def _measurement_at(self, context: Context) -> _Measurement:
-        """The tick's measurement: the arriving pings, Y, m, Γ, the baseline, the geometry."""
-        p_WU = self._uuv_port.Eval(context)
-        p_WT = self._target_port.Eval(context)
-        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        q_s = R_WB @ self._b
-        q = p_WU - p_WT
-        now = context.get_time()
-        q_prior, radius = self._pointing(context)
-        R_point = R_WB
-        if self._prior_port is not None:
-            R_point = self._pointing_attitude_port.Eval(context).reshape(3, 3)
-        tick = previous = None
-        if self._timed:
-            tick = TickGeometry(
-                now, p_WU, self._uuv_velocity_port.Eval(context), R_WB, p_WT,
-                self._target_velocity_port.Eval(context), q_prior, radius, R_point,
-            )  # fmt: skip
-            previous = TickGeometry.from_vector(
-                context.get_discrete_state(self._previous_index).value()
-            )
-            if math.isnan(previous.time):
-                previous = None  # the first tick: no ping between ticks yet
-        pings: list[PingGeometry | None] = []
-        for i, (tau, d) in enumerate(zip(self._tau, self._delays, strict=True)):
-            if d == 0:
-                pings.append(tick_ping(i, now, q, R_WB, q_s, q_prior, radius, R_point))
-            elif previous is None:
-                pings.append(None)
-            else:
-                pings.append(ping_between(i, tau, previous, tick, self._time_step, self._b))
-        measured = self._measure(context, pings)
-        arrivals = measured
-        if self._fifo_index:
-            arrivals = copy.deepcopy(measured)
-            n = Pings.entry_size(self._f)
-            for i, index in self._fifo_index.items():
-                arrivals.set_entry(i, context.get_discrete_state(index).value()[:n])
-        Y, m, gamma = self._paper_measurement(arrivals.samples)
-        return _Measurement(arrivals, Y, m, gamma, q_s, measured, tick)
-
-    def _pointing(self, context: Context) -> tuple[np.ndarray, float]:
-        """The estimator's predicted ``q`` and the radius the pan-tilts scan (NaN without a
-        beam)."""
-        if self._prior_port is None:
-            return _NAN3, math.nan  # nothing to point at
-        P_prior = self._prior_covariance_port.Eval(context).reshape(6, 6)
-        return self._prior_port.Eval(context)[:3], self._faults.search_radius(P_prior)
-
-    def _measure(self, context: Context, pings: list[PingGeometry | None]) -> Pings:
-        """Both sonars' ranges of these pings (None: no ping), with this tick's draws."""
-        true_ranges = np.array(
-            [0.0 if p is None else math.sqrt(float(p.p_TS_W @ p.p_TS_W)) for p in pings]
+        """The paper's sonar: both pings at the tick, both ranges returned, status VALID."""
+        q_s, p_WU, _, p_WT, noise = self._tick_inputs(context)
+        kernels.measure_plain(
+            context.get_time(), q_s, p_WU, p_WT, noise, self._settings, output.get_mutable_value()
         )
-        noise = self._noise_port.Eval(context).reshape(2, self._f)
-        measured = true_ranges if self._scale == 1.0 else self._scale * true_ranges
-        samples = measured[:, np.newaxis] + self._sigma * noise
-        status = np.zeros(2)
-        multipath = np.zeros(2)
-        faulty = False
-        if self._prior_port is not None or self._faults.max_range is not None:
-            status = geometry_status(self._faults, pings, true_ranges, self._b)
-            faulty = True
-        if self._faults.random_faults:
-            multipath = random_faults(
-                self._faults,
-                status,
-                self._uniform_port.Eval(context),
-                self._multipath_port.Eval(context),
-            )
-            samples += multipath[:, np.newaxis]
-            faulty = True
-        if any(ping is None for ping in pings):
-            missing = np.array([ping is None for ping in pings])
-            status[missing], multipath[missing] = NO_ARRIVAL, 0.0
-            faulty = True
-        times = np.array([_NAN if p is None else p.time for p in pings])
-        p_TS_W = np.array([_NAN3 if p is None else p.p_TS_W for p in pings])
-        if faulty and status.any():
-            samples[status != VALID] = np.nan
-        return Pings(samples, status, multipath, times, p_TS_W)
 
-    def _paper_measurement(self, samples: np.ndarray) -> tuple[float, float, float]:
-        """``(Y, m, Γ)`` of the arriving samples (2×f)."""
-        if self._f == 1 and self._noise_model == "derived":
-            # The same arithmetic as below on Python floats (a sum of one sample is that
-            # sample; dividing by 1 changes nothing), without a dozen numpy calls.
-            d1, d2 = samples.ravel().tolist()
-            eta1, eta2 = self._eta_floats
-            m = self._derived_m
-            gamma = (
-                eta1 * _clip_at_zero(d1 * d1 - eta1)
-                + eta2 * _clip_at_zero(d2 * d2 - eta2)
-                + self._derived_gamma_floor
-            )
+    def _calc_output(self, context: Context, output: BasicVector) -> None:
+        """Faults or a beam at the paper's timing: the pings at the tick, no state."""
+        self._measure(context, output.get_mutable_value(), self._unused, [])
+
+    def _calc_step(self, context: Context, value: AbstractValue) -> None:
+        """With timing: the outputs, then the next state (this tick's geometry, the FIFOs)."""
+        work = value.get_mutable_value().get_mutable_value()
+        B, n = self.batch_size, self._size
+        next_previous = work[n : n + B * TickGeometry.SIZE].reshape(B, TickGeometry.SIZE)
+        next_fifos, start = [], n + B * TickGeometry.SIZE
+        for size in self._fifo_sizes:
+            next_fifos.append(work[start : start + B * size].reshape(B, size))
+            start += B * size
+        self._measure(context, work[:n], next_previous, next_fifos)
+
+    def _calc_timed_output(self, context: Context, output: BasicVector) -> None:
+        output.set_value(self._step.Eval(context).value()[: self._size])
+
+    def _measure(
+        self,
+        context: Context,
+        out: np.ndarray,
+        next_previous: np.ndarray,
+        next_fifos: list[np.ndarray],
+    ) -> None:
+        """One kernel call for all runs, with what the features that are on read."""
+        B, unused = self.batch_size, self._unused
+        q_s, p_WU, R_WB, p_WT, noise = self._tick_inputs(context)
+        v_WU = v_WT = unused
+        previous = self._unused_state
+        fifos = [previous, previous]
+        if self._timed:
+            v_WU = per_run(self._uuv_velocity_port.Eval(context), B)
+            v_WT = per_run(self._target_velocity_port.Eval(context), B)
+            previous = per_run(context.get_discrete_state(self._previous_index).value(), B)
+            for i, index in self._fifo_index.items():
+                fifos[i] = per_run(context.get_discrete_state(index).value(), B)
         else:
-            d1, d2 = samples[:, 0]
-            mean_squares = (samples * samples).sum(axis=1) / self._f
-            m, gamma = range_difference_noise(self._noise_model, self._eta, mean_squares)
-        return 0.5 * (d1 * d1 - d2 * d2), m, gamma
+            next_fifos = [unused, unused]
+        prior = R_nav = radius = uniform = exponential = unused
+        if self._beam:
+            prior = per_run(self._prior_port.Eval(context), B)
+            R_nav = per_run(self._pointing_attitude_port.Eval(context), B)
+            P_prior = per_run(self._prior_covariance_port.Eval(context), B, 6, 6)
+            radius = self._faults.search_radii(P_prior).reshape(B, 1)
+        if self._random:
+            uniform = per_run(self._uniform_port.Eval(context), B)
+            exponential = per_run(self._multipath_port.Eval(context), B)
+        kernels.measure(
+            context.get_time(), q_s, p_WU, R_WB, p_WT, noise, v_WU, v_WT, previous, prior,
+            R_nav, radius, uniform, exponential, fifos[0], fifos[1], self._delay_array,
+            self._flags, self._settings, out, next_previous, next_fifos[0], next_fifos[1],
+        )  # fmt: skip
 
     def _advance(self, context: Context, discrete_state: DiscreteValues) -> None:
         """Keeps this tick's geometry for the next tick's pings and moves each FIFO on by
         the ping measured now."""
-        measurement = self._measurement.Eval(context)
-        discrete_state.set_value(self._previous_index, measurement.tick.to_vector())
-        for i, index in self._fifo_index.items():
-            fifo = context.get_discrete_state(index).value()
-            discrete_state.set_value(index, fifo_push(fifo, measurement.measured.entry(i)))
+        work = self._step.Eval(context).value()
+        B, start = self.batch_size, self._size
+        end = start + B * TickGeometry.SIZE
+        discrete_state.set_value(self._previous_index, work[start:end])
+        for i, size in enumerate(self._fifo_sizes):
+            start, end = end, end + B * size
+            if i in self._fifo_index:
+                discrete_state.set_value(self._fifo_index[i], work[start:end])

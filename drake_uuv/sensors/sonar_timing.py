@@ -5,10 +5,11 @@ estimator ``L`` later (``sonar.latency``): at the first tick at or after ``t_k +
 ``k + d_i`` with ``d_i = ⌈(τ_i + L)/t⌉`` (:func:`arrival_delays`). ``d_i = 0`` only when
 ``τ_i = L = 0``: the paper's ping at the tick, read at once.
 
-A ping between ticks k and k+1 is known at tick k+1: :func:`ping_between` interpolates the
-geometry of the two ticks (:mod:`drake_uuv.models.ping_geometry`), which the sonar keeps as
-:class:`TickGeometry` in its discrete state, and a ping that arrives later waits in a FIFO of
-:class:`Pings` rows (:func:`fifo_push`), also discrete state.
+A ping between ticks k and k+1 is known at tick k+1: the sonar interpolates the geometry of
+the two ticks (:func:`~drake_uuv.sensors.sonar_kernels.measure`, as
+:mod:`drake_uuv.models.ping_geometry`), keeping the previous one as :class:`TickGeometry` in
+its discrete state, and a ping that arrives later waits in a FIFO of slots
+(:func:`entry_size`), also discrete state, per run.
 """
 
 import math
@@ -18,7 +19,6 @@ from typing import Self
 import numpy as np
 
 from drake_uuv.models.measurement import NO_ARRIVAL
-from drake_uuv.models.ping_geometry import interpolate_attitude, interpolate_position
 
 #: A delay ``(τ + L)/t`` within this of an integer counts as that integer (``0.3 + 0.2``
 #: seconds of a 0.5 s step is one step, not two).
@@ -105,121 +105,15 @@ class TickGeometry:
         return cls(math.nan, nan3, nan3, nan33, nan3, nan3, nan3, math.nan, nan33)
 
 
-@dataclass(slots=True)
-class PingGeometry:
-    """One sonar's ping: when, where the sonar was, and what its pan-tilt pointed at.
-
-    ``p_TS_W``: the sonar from the target, ``q ± ½ q_s`` at the ping (W) [m]; ``offset_W``:
-    the sonar from the body origin, ``± ½ R_WB b``; ``sign``: +1 for s1, −1 for s2;
-    ``R_WB``: the true attitude at the ping; ``q_prior``, ``search_radius``: the prediction
-    of the ping's tick the pan-tilt points at and the radius it scans; ``R_point``: the
-    attitude the vehicle believes it has at the ping, by which it points.
-    """
-
-    time: float
-    p_TS_W: np.ndarray
-    offset_W: np.ndarray
-    sign: float
-    R_WB: np.ndarray
-    q_prior: np.ndarray
-    search_radius: float
-    R_point: np.ndarray
+def entry_size(samples_per_step: int) -> int:
+    """The length of one sonar's ping as a FIFO slot holds it: its f samples, status,
+    multipath, ping time and ``p_TS_W`` (the sonar from the target at the ping, W)."""
+    return samples_per_step + 6
 
 
-def tick_ping(
-    sonar: int,
-    time: float,
-    q: np.ndarray,
-    R_WB: np.ndarray,
-    q_s: np.ndarray,
-    q_prior: np.ndarray,
-    search_radius: float,
-    R_point: np.ndarray | None = None,
-) -> PingGeometry:
-    """Sonar ``sonar``'s (0 or 1) ping with the vehicle at ``q`` from the target and the world
-    baseline ``q_s = R_WB b``."""
-    half = 0.5 * q_s
-    offset = half if sonar == 0 else -half
-    return PingGeometry(
-        time, q + offset, offset, 1.0 if sonar == 0 else -1.0, R_WB, q_prior, search_radius,
-        R_WB if R_point is None else R_point,
-    )  # fmt: skip
-
-
-def ping_between(
-    sonar: int,
-    tau: float,
-    previous: TickGeometry,
-    current: TickGeometry,
-    time_step: float,
-    baseline_B: np.ndarray,
-) -> PingGeometry:
-    """Sonar ``sonar``'s ping ``tau`` after the ``previous`` tick, from both ticks' geometry.
-
-    The relative position by the cubic Hermite interpolant of ``(q, ϑ)``, the attitude by the
-    geodesic (exact for the kinematic plant and the target); the pan-tilt points at the
-    previous tick's prediction (the step the ping belongs to).
-    """
-    s = tau / time_step
-    q = interpolate_position(
-        previous.p_WU - previous.p_WT,
-        previous.v_WU - previous.v_WT,
-        current.p_WU - current.p_WT,
-        current.v_WU - current.v_WT,
-        s,
-        time_step,
-    )
-    R = interpolate_attitude(previous.R_WB, current.R_WB, s)
-    R_point = interpolate_attitude(previous.R_WB_nav, current.R_WB_nav, s)
-    return tick_ping(
-        sonar, previous.time + tau, q, R, R @ baseline_B, previous.q_prior,
-        previous.search_radius, R_point,
-    )  # fmt: skip
-
-
-@dataclass
-class Pings:
-    """Both sonars' measured pings, row i sonar i: what a FIFO slot holds, what arrives.
-
-    ``samples`` (2×f, NaN without a return), ``status`` (VALID, DROPPED, OUT_OF_BEAM,
-    OUT_OF_RANGE or NO_ARRIVAL), ``multipath`` (the excess added), ``time`` (the ping time, NaN
-    with NO_ARRIVAL), ``p_TS_W`` (2×3, the sonar from the target at the ping, NaN likewise).
-    """
-
-    samples: np.ndarray
-    status: np.ndarray
-    multipath: np.ndarray
-    time: np.ndarray
-    p_TS_W: np.ndarray
-
-    @staticmethod
-    def entry_size(samples_per_step: int) -> int:
-        """The length of one sonar's row as a FIFO holds it."""
-        return samples_per_step + 6
-
-    def entry(self, sonar: int) -> np.ndarray:
-        """Sonar ``sonar``'s row: its f samples, status, multipath, ping time, p_TS_W."""
-        i = sonar
-        tail = [self.status[i], self.multipath[i], self.time[i]]
-        return np.concatenate((self.samples[i], tail, self.p_TS_W[i]))
-
-    def set_entry(self, sonar: int, entry: np.ndarray) -> None:
-        """Overwrites sonar ``sonar``'s row with a FIFO entry."""
-        f = self.samples.shape[1]
-        self.samples[sonar] = entry[:f]
-        self.status[sonar], self.multipath[sonar], self.time[sonar] = entry[f : f + 3]
-        self.p_TS_W[sonar] = entry[f + 3 :]
-
-    @staticmethod
-    def no_arrival_entry(samples_per_step: int) -> np.ndarray:
-        """A row with nothing in it: NaN samples, NO_ARRIVAL, no multipath, NaN time and
-        geometry."""
-        entry = np.full(Pings.entry_size(samples_per_step), math.nan)
-        entry[samples_per_step : samples_per_step + 2] = NO_ARRIVAL, 0.0
-        return entry
-
-
-def fifo_push(fifo: np.ndarray, entry: np.ndarray) -> np.ndarray:
-    """The FIFO (its entries concatenated, oldest first) with its oldest entry dropped and
-    ``entry`` appended."""
-    return np.concatenate((fifo[len(entry) :], entry))
+def no_arrival_entry(samples_per_step: int) -> np.ndarray:
+    """A FIFO slot with nothing in it: NaN samples, NO_ARRIVAL, no multipath, NaN time and
+    geometry."""
+    entry = np.full(entry_size(samples_per_step), math.nan)
+    entry[samples_per_step : samples_per_step + 2] = NO_ARRIVAL, 0.0
+    return entry

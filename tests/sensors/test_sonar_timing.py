@@ -18,8 +18,8 @@ from drake_uuv.models.measurement import (
 )
 from drake_uuv.scenario import ScenarioError, SonarConfig, load_scenario
 from drake_uuv.sensors import DualSonar
-from drake_uuv.sensors.sonar_faults import beam_axis
-from drake_uuv.sensors.sonar_timing import arrival_delays, tick_ping
+from drake_uuv.sensors.sonar_kernels import beam_axis
+from drake_uuv.sensors.sonar_timing import arrival_delays
 from tests.conftest import ETA_UNEQUAL, T
 from tests.sensors.sonar_harness import (
     Motion,
@@ -270,13 +270,13 @@ def test_the_beam_axis_by_the_pointing_attitude() -> None:
     R_true = motion.attitude(0.3)
     q_s = R_true @ motion.baseline
     q_prior = np.array([-2.0, 1.0, 0.5])
-    q = np.array([-2.5, 1.2, 0.4])
-    ping = tick_ping(1, 0.3, q, R_true, q_s, q_prior, 0.0)
-    assert_array_equal(beam_axis(ping, motion.baseline), -(q_prior - 0.5 * q_s))
+    offset = -(0.5 * q_s)  # sonar 2's
+    axis = beam_axis(R_true, R_true, q_prior, offset, -1.0, motion.baseline)
+    assert_array_equal(axis, -(q_prior - 0.5 * q_s))
     R_nav = rotation(np.array([0.0, 0.0, 0.05])) @ R_true  # a 0.05 rad heading error
-    ping = tick_ping(1, 0.3, q, R_true, q_s, q_prior, 0.0, R_nav)
     aim_B = R_nav.T @ -(q_prior - 0.5 * R_nav @ motion.baseline)
-    assert_allclose(beam_axis(ping, motion.baseline), R_true @ aim_B, atol=1e-14)
+    axis = beam_axis(R_true, R_nav, q_prior, offset, -1.0, motion.baseline)
+    assert_allclose(axis, R_true @ aim_B, atol=1e-14)
 
 
 def test_the_sonar_points_by_the_navigated_attitude() -> None:
