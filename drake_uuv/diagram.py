@@ -132,7 +132,7 @@ def make_systems(
             scenario.sonar,
             noise_model=scenario.estimator.noise_model,
             time_step=scenario.time_step,
-            **({} if B == 1 else {"batch_size": B}),  # TRANSITIONAL
+            batch_size=B,
         ),
         "estimator": lambda: make_estimator(scenario, batch_size=B),
         "attitude_generator": lambda: make_attitude_generator(scenario, batch_size=B),
