@@ -10,6 +10,7 @@ produces a world acceleration ``a = R u1``; written as ``a = a_ff − K (x̂ −
 import math
 
 import numpy as np
+from numba import njit
 from pydrake.systems.controllers import DiscreteTimeLinearQuadraticRegulator
 
 from drake_uuv.models.motion import double_integrator
@@ -19,42 +20,106 @@ from drake_uuv.models.motion import double_integrator
 REFERENCE_FRAMES = ("body", "world", "heading")
 
 
-def heading_rotation(R_WB: np.ndarray) -> np.ndarray:
-    """``R_z(ψ)``, the rotation about world z by the body's heading ψ (the yaw of its x axis).
+def heading_rotations(R_WB: np.ndarray) -> np.ndarray:
+    """``R_z(ψ)`` (…×3×3) for attitudes ``R_WB`` (…×3×3): the rotation about world z by the
+    body's heading ψ (the yaw of its x axis).
 
-    ψ = atan2(R₁₀, R₀₀), the Z-Y-X yaw; when the body's x axis is vertical (no heading), the
-    heading of its y axis stands in: ψ = atan2(−R₀₁, R₁₁).
+    ψ = atan2(R₁₀, R₀₀), the Z-Y-X yaw; where the body's x axis is vertical (no heading), the
+    heading of its y axis stands in: ψ = atan2(−R₀₁, R₁₁). Each attitude takes its own branch
+    (a compiled loop over them), so one attitude's value never depends on the others'.
     """
-    R = np.asarray(R_WB, dtype=float).reshape(3, 3)
-    c, s = R[0, 0], R[1, 0]
-    if math.hypot(c, s) < 1e-9:
-        c, s = R[1, 1], -R[0, 1]
-    h = math.hypot(c, s)
-    c, s = c / h, s / h
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    R = np.asarray(R_WB, dtype=float)
+    out = np.zeros(R.shape)
+    _heading_kernel(np.ascontiguousarray(R).reshape(-1, 3, 3), out.reshape(-1, 3, 3))
+    return out
+
+
+@njit(cache=True)
+def _heading_kernel(R: np.ndarray, out: np.ndarray) -> None:
+    for n in range(R.shape[0]):
+        c, s = R[n, 0, 0], R[n, 1, 0]
+        if math.hypot(c, s) < 1e-9:
+            c, s = R[n, 1, 1], -R[n, 0, 1]
+        h = math.hypot(c, s)
+        c, s = c / h, s / h
+        out[n, 0, 0] = c
+        out[n, 0, 1] = -s
+        out[n, 1, 0] = s
+        out[n, 1, 1] = c
+        out[n, 2, 2] = 1.0
+
+
+def heading_rotation(R_WB: np.ndarray) -> np.ndarray:
+    """``R_z(ψ)`` (3×3) of one attitude (:func:`heading_rotations`)."""
+    return heading_rotations(np.asarray(R_WB, dtype=float).reshape(1, 3, 3))[0]
+
+
+def _check_frame(frame: str) -> None:
+    if frame not in REFERENCE_FRAMES:
+        raise ValueError(
+            f"reference_frame: must be one of {', '.join(REFERENCE_FRAMES)}, got {frame!r}"
+        )
+
+
+def reference_rotations(R_WB: np.ndarray, frame: str) -> np.ndarray:
+    """``R_WF`` (…×3×3): the rotation from the frame F that q* is fixed in to the world, at
+    each attitude ``R_WB`` (…×3×3); the desired relative position is then ``r = R_WF q*``."""
+    _check_frame(frame)
+    R = np.asarray(R_WB, dtype=float)
+    if frame == "body":
+        return R
+    if frame == "world":
+        return np.broadcast_to(np.eye(3), R.shape)
+    return heading_rotations(R)
 
 
 def reference_rotation(R_WB: np.ndarray, frame: str) -> np.ndarray:
-    """``R_WF``: the rotation from the frame F that q* is fixed in to the world, at attitude
-    ``R_WB``; the desired relative position is then ``r = R_WF q*`` (world frame)."""
-    if frame == "body":
-        return np.asarray(R_WB, dtype=float).reshape(3, 3)
-    if frame == "world":
-        return np.eye(3)
-    if frame == "heading":
-        return heading_rotation(R_WB)
-    raise ValueError(
-        f"reference_frame: must be one of {', '.join(REFERENCE_FRAMES)}, got {frame!r}"
-    )
+    """``R_WF`` (3×3) at one attitude ``R_WB`` (:func:`reference_rotations`)."""
+    return reference_rotations(np.asarray(R_WB, dtype=float).reshape(3, 3), frame)
 
 
 def desired_relative_positions(R_WB: np.ndarray, q_star: np.ndarray, frame: str) -> np.ndarray:
-    """``r(k) = R_WF(k) q*`` for a stack of attitudes ``R_WB`` (N×3×3): N×3, world frame."""
-    R_WB = np.asarray(R_WB, dtype=float).reshape(-1, 3, 3)
+    """``r = R_WF q*`` (…×3, world frame) at each attitude ``R_WB`` (…×3×3; a flat N×9 stack
+    is read as N×3×3)."""
+    R = np.asarray(R_WB, dtype=float)
+    if R.shape[-2:] != (3, 3):
+        R = R.reshape(*R.shape[:-1], 3, 3)
     q_star = np.asarray(q_star, dtype=float)
-    if frame == "body":
-        return R_WB @ q_star
-    return np.stack([reference_rotation(R, frame) @ q_star for R in R_WB])
+    return rotate(reference_rotations(R, frame), q_star)
+
+
+def rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``R v`` (…×3) for matrices ``R`` (…×3×3) and vectors ``v`` (…×3) with the same leading
+    axes (or ``v`` one 3-vector for all): a compiled loop, each product alone."""
+    return _rotated(R, v, False)
+
+
+def rotate_back(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``Rᵀ v`` (…×3), as :func:`rotate`."""
+    return _rotated(R, v, True)
+
+
+def _rotated(R: np.ndarray, v: np.ndarray, transpose: bool) -> np.ndarray:
+    R = np.ascontiguousarray(R, dtype=float)
+    v = np.ascontiguousarray(v, dtype=float)
+    if v.size not in (3, R.size // 3):
+        raise ValueError(f"v: must be one 3-vector or one per matrix, got shape {v.shape}")
+    out = np.empty(R.shape[:-1])
+    # One vector for every matrix is read in place (no broadcast copy).
+    _rotate_kernel(R.reshape(-1, 3, 3), v.reshape(-1, 3), transpose, out.reshape(-1, 3))
+    return out
+
+
+@njit(cache=True)
+def _rotate_kernel(R: np.ndarray, v: np.ndarray, transpose: bool, out: np.ndarray) -> None:
+    shared = v.shape[0] == 1
+    for n in range(R.shape[0]):
+        m = 0 if shared else n
+        for i in range(3):
+            if transpose:
+                out[n, i] = R[n, 0, i] * v[m, 0] + R[n, 1, i] * v[m, 1] + R[n, 2, i] * v[m, 2]
+            else:
+                out[n, i] = R[n, i, 0] * v[m, 0] + R[n, i, 1] * v[m, 1] + R[n, i, 2] * v[m, 2]
 
 
 def paper_gains(time_step: float, alpha: float) -> tuple[float, float]:
@@ -73,7 +138,8 @@ def paper_gain_matrix(time_step: float, alpha: float) -> np.ndarray:
 def paper_tracking_command(
     x_hat: np.ndarray, R_WB: np.ndarray, q_star_B: np.ndarray, k_p: float, k_v: float
 ) -> np.ndarray:
-    """The paper's law (§III-B): ``u1 = −k_p (Rᵀ q̂ − q*) − k_v Rᵀ ϑ̂`` (body frame).
+    """The paper's law (§III-B): ``u1 = −k_p (Rᵀ q̂ − q*) − k_v Rᵀ ϑ̂`` (body frame), for one
+    run (``x_hat`` 6, ``R_WB`` 3×3, ``q_star_B`` 3 → 3) or a stack (…×6, …×3×3, …×3 → …×3).
 
     ``q_star_B`` is the desired relative position in the body frame: the paper's q* itself,
     or ``Rᵀ R_WF q*`` for a q* fixed in another frame (:func:`reference_rotation`).
@@ -82,12 +148,32 @@ def paper_tracking_command(
     for α in (1 − 1/√2, 1 + 1/√2) (and in fact for 0 < α < 2), but the relative velocity is
     never damped and flips sign every step.
     """
-    R_BW = R_WB.T
-    # The products stay numpy (BLAS); the element-wise rest, in the same order, on floats.
-    position = (R_BW @ x_hat[:3]).tolist()
-    velocity = (R_BW @ x_hat[3:]).tolist()
-    r = q_star_B.tolist()
-    return np.array([-k_p * (position[i] - r[i]) - k_v * velocity[i] for i in range(3)])
+    x_hat = np.ascontiguousarray(x_hat, dtype=float)
+    R = np.ascontiguousarray(R_WB, dtype=float)
+    q_star_B = np.ascontiguousarray(q_star_B, dtype=float)
+    if x_hat.size // 6 != R.size // 9 or q_star_B.size not in (3, R.size // 3):
+        raise ValueError(
+            f"x_hat, R_WB, q_star_B: shapes {x_hat.shape}, {R.shape}, {q_star_B.shape} differ"
+        )
+    out = np.empty(R.shape[:-1])
+    _paper_kernel(
+        x_hat.reshape(-1, 6), R.reshape(-1, 3, 3), q_star_B.reshape(-1, 3), k_p, k_v,
+        out.reshape(-1, 3),
+    )  # fmt: skip
+    return out
+
+
+@njit(cache=True)
+def _paper_kernel(
+    x: np.ndarray, R: np.ndarray, q_star: np.ndarray, k_p: float, k_v: float, out: np.ndarray
+) -> None:
+    shared = q_star.shape[0] == 1
+    for n in range(R.shape[0]):
+        m = 0 if shared else n
+        for i in range(3):
+            position = R[n, 0, i] * x[n, 0] + R[n, 1, i] * x[n, 1] + R[n, 2, i] * x[n, 2]
+            velocity = R[n, 0, i] * x[n, 3] + R[n, 1, i] * x[n, 4] + R[n, 2, i] * x[n, 5]
+            out[n, i] = -k_p * (position - q_star[m, i]) - k_v * velocity
 
 
 def lqr_gain(
@@ -107,21 +193,37 @@ def lqr_gain(
 def reference_feedforward(
     r0: np.ndarray, r1: np.ndarray, r2: np.ndarray, time_step: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``([r0; ν], a_ff)`` of the reference through ``r0, r1, r2`` under one constant
-    acceleration: ``ν = (−3 r0 + 4 r1 − r2)/(2t)``, ``a_ff = (r0 − 2 r1 + r2)/t²`` (see
-    :mod:`drake_uuv.tracking.lqr_tracking` for the derivation and its residual)."""
+    """``([r0; ν], a_ff)`` of the reference through ``r0, r1, r2`` (…×3 each) under one
+    constant acceleration: ``ν = (−3 r0 + 4 r1 − r2)/(2t)``, ``a_ff = (r0 − 2 r1 + r2)/t²``
+    (see :mod:`drake_uuv.tracking.lqr_tracking` for the derivation and its residual)."""
     t = time_step
     nu = (-3.0 * r0 + 4.0 * r1 - r2) / (2.0 * t)
     a_ff = (r0 - 2.0 * r1 + r2) / (t * t)
-    return np.concatenate([r0, nu]), a_ff
+    return np.concatenate([r0, nu], axis=-1), a_ff
 
 
 def saturate_norm(a: np.ndarray, limit: float | None) -> np.ndarray:
-    """``a`` scaled down to norm ``limit`` if longer (direction kept); unchanged if None."""
+    """``a`` (…×3) scaled down to norm ``limit`` where longer (direction kept), each vector
+    alone (a compiled loop over them); unchanged if None. A NaN vector stays NaN."""
     if limit is None:
         return a
-    a_norm = float(np.sqrt(a @ a))
-    return a * (limit / a_norm) if a_norm > limit else a
+    a = np.asarray(a, dtype=float)
+    out = np.array(a)  # a copy, C-ordered
+    _saturate_kernel(out.reshape(-1, a.shape[-1]), float(limit))
+    return out
+
+
+@njit(cache=True)
+def _saturate_kernel(a: np.ndarray, limit: float) -> None:
+    for n in range(a.shape[0]):
+        squared = 0.0
+        for i in range(a.shape[1]):
+            squared += a[n, i] * a[n, i]
+        norm = math.sqrt(squared)
+        if norm > limit:
+            scale = limit / norm
+            for i in range(a.shape[1]):
+                a[n, i] *= scale
 
 
 def closed_loop_eigenvalues(time_step: float, K: np.ndarray) -> np.ndarray:

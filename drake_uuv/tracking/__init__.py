@@ -6,8 +6,9 @@ Contract of the slot (system ``tracking_controller``): inputs ``x_TU_hat`` and `
 (the filter's known input). A ``gain`` property, the law's 3×6 world-frame gain on the
 relative state, gives the closed-loop eigenvalues the metrics report (optional: without it
 the metric is NaN). See :mod:`drake_uuv.signals`. Each system is built as
-``cls(config, setting=TrackingSetting(...))``
-(:class:`~drake_uuv.tracking.base.TrackingSetting`).
+``cls(config, setting=TrackingSetting(...), batch_size=B)``
+(:class:`~drake_uuv.tracking.base.TrackingSetting`); with ``batch_size`` B every port holds B
+runs row-major (:mod:`drake_uuv.primitives.batch`) and ``gain`` is the same for every run.
 """
 
 from drake_uuv.tracking.base import TrackingSetting

@@ -8,7 +8,8 @@ from drake_uuv.tracking.base import TrackingSetting
 from drake_uuv.tracking.lqr_tracking import LqrTrackingController
 from drake_uuv.tracking.paper_tracking import PaperTrackingController
 
-#: Variant dataclass → its system, built as ``cls(config, setting=TrackingSetting(...))``.
+#: Variant dataclass → its system, built as
+#: ``cls(config, setting=TrackingSetting(...), batch_size=B)``.
 TRACKING_CONTROLLERS: dict[type, type[LeafSystem]] = {
     PaperTracking: PaperTrackingController,
     LqrTracking: LqrTrackingController,
@@ -21,10 +22,7 @@ def tracking_setting(scenario: Scenario) -> TrackingSetting:
 
 
 def make_tracking_controller(scenario: Scenario, *, batch_size: int = 1) -> LeafSystem:
-    """The tracking controller of ``scenario.tracking``'s variant."""
+    """The tracking controller of ``scenario.tracking``'s variant, stepping ``batch_size``
+    runs."""
     cls = variant_system(TRACKING_CONTROLLERS, scenario.tracking, "tracking")
-    return cls(scenario.tracking, setting=tracking_setting(scenario), **_TRANSITIONAL(batch_size))
-
-
-def _TRANSITIONAL(batch_size: int) -> dict:  # TRANSITIONAL until the slot's systems batch
-    return {} if batch_size == 1 else {"batch_size": batch_size}
+    return cls(scenario.tracking, setting=tracking_setting(scenario), batch_size=batch_size)

@@ -49,9 +49,12 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from drake_uuv.models.tracking_laws import (
     lqr_gain,
     reference_feedforward,
-    reference_rotation,
+    reference_rotations,
+    rotate,
+    rotate_back,
     saturate_norm,
 )
+from drake_uuv.primitives.batch import batch_size_field, per_run
 from drake_uuv.scenario.tracking import LqrTracking
 from drake_uuv.tracking.base import TrackingSetting
 
@@ -86,26 +89,33 @@ class LqrTrackingController(LeafSystem):
     - ``u1_W`` (3): the same acceleration in the world frame, ``R u1`` with the navigated
       ``R`` (the filter's input: the acceleration the vehicle believes it applies).
 
+    Sizes are per run: with ``batch_size`` B every port holds B runs row-major
+    (:mod:`drake_uuv.primitives.batch`); each run is limited alone (a mask, not a branch), and
+    the gain ``K`` is the same for every run.
+
     ``config`` (:class:`~drake_uuv.scenario.LqrTracking`) gives q*, its frame, the weights,
     the limit and whether to feed forward; the ``setting`` the period t.
     """
 
-    def __init__(self, config: LqrTracking, *, setting: TrackingSetting) -> None:
+    def __init__(
+        self, config: LqrTracking, *, setting: TrackingSetting, batch_size: int = 1
+    ) -> None:
         super().__init__()
+        self.batch_size = B = batch_size_field(batch_size)
         self._time_step = setting.time_step
         self._q_star = np.asarray(config.desired_relative_position, dtype=float)
-        reference_rotation(np.eye(3), config.reference_frame)  # Fail early on a bad frame.
+        reference_rotations(np.eye(3), config.reference_frame)  # Fail early on a bad frame.
         self._frame = config.reference_frame
         self._K, _ = lqr_gain(
             self._time_step, config.position_weight, config.velocity_weight, config.input_weight
         )
         self._max_acceleration = config.max_acceleration
         self._feedforward = config.feedforward
-        self._x_hat_port = self.DeclareVectorInputPort("x_TU_hat", 6)
-        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
-        self._plan_port = self.DeclareVectorInputPort("R_WB_plan", 18)
-        self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1)
-        self.DeclareVectorOutputPort("u1_W", 3, self._calc_u1_W)
+        self._x_hat_port = self.DeclareVectorInputPort("x_TU_hat", 6 * B)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9 * B)
+        self._plan_port = self.DeclareVectorInputPort("R_WB_plan", 18 * B)
+        self.DeclareVectorOutputPort("u1_B", 3 * B, self._calc_u1)
+        self._u1_W_port = self.DeclareVectorOutputPort("u1_W", 3 * B, self._calc_u1_W)
 
     @property
     def gain(self) -> np.ndarray:
@@ -113,27 +123,30 @@ class LqrTrackingController(LeafSystem):
         return self._K.copy()
 
     def reference(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
-        """``([r(k); ν(k)], a_ff(k))`` in the world frame (``([r(k); 0], 0)`` without the
-        feed-forward)."""
-        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
+        """``([r(k); ν(k)], a_ff(k))`` (B×6, B×3) in the world frame (``([r(k); 0], 0)``
+        without the feed-forward)."""
+        B = self.batch_size
+        R_WB = per_run(self._attitude_port.Eval(context), B, 3, 3)
         frame, q_star = self._frame, self._q_star
-        r0 = reference_rotation(R_WB, frame) @ q_star
+        r0 = rotate(reference_rotations(R_WB, frame), q_star)
         if not self._feedforward:
-            return np.concatenate([r0, np.zeros(3)]), np.zeros(3)
-        plan = self._plan_port.Eval(context)
-        r1 = reference_rotation(plan[:9].reshape(3, 3), frame) @ q_star
-        r2 = reference_rotation(plan[9:].reshape(3, 3), frame) @ q_star
+            return np.concatenate([r0, np.zeros((B, 3))], axis=1), np.zeros((B, 3))
+        plan = reference_rotations(per_run(self._plan_port.Eval(context), B, 2, 3, 3), frame)
+        r1, r2 = rotate(plan[:, 0], q_star), rotate(plan[:, 1], q_star)
         return reference_feedforward(r0, r1, r2, self._time_step)
 
     def acceleration(self, context: Context) -> np.ndarray:
-        """The applied world acceleration ``a(k)``, after the limit."""
+        """The applied world acceleration ``a(k)`` (B×3), after the limit."""
         x_reference, a_ff = self.reference(context)
-        a = a_ff - self._K @ (self._x_hat_port.Eval(context) - x_reference)
+        error = per_run(self._x_hat_port.Eval(context), self.batch_size) - x_reference
+        # K applied run by run (a stacked product), never one product over the batch.
+        a = a_ff - (self._K @ error[:, :, np.newaxis])[:, :, 0]
         return saturate_norm(a, self._max_acceleration)
 
     def _calc_u1(self, context: Context, output: BasicVector) -> None:
-        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        output.set_value(R_WB.T @ self.get_output_port(1).Eval(context))
+        B = self.batch_size
+        R_WB = per_run(self._attitude_port.Eval(context), B, 3, 3)
+        output.set_value(rotate_back(R_WB, per_run(self._u1_W_port.Eval(context), B)).ravel())
 
     def _calc_u1_W(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self.acceleration(context))
+        output.set_value(self.acceleration(context).ravel())

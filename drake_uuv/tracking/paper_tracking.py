@@ -7,8 +7,12 @@ from drake_uuv.models.tracking_laws import (
     paper_gain_matrix,
     paper_gains,
     paper_tracking_command,
-    reference_rotation,
+    reference_rotations,
+    rotate,
+    rotate_back,
+    saturate_norm,
 )
+from drake_uuv.primitives.batch import batch_size_field, per_run
 from drake_uuv.scenario.tracking import PaperTracking
 from drake_uuv.tracking.base import TrackingSetting
 
@@ -42,23 +46,30 @@ class PaperTrackingController(LeafSystem):
     ``Rᵀ R_WF q*`` in place of q*. With ``max_acceleration`` the command is scaled down to that
     norm (direction kept); the law is static, so there is nothing to wind up.
 
+    Sizes are per run: with ``batch_size`` B every port holds B runs row-major
+    (:mod:`drake_uuv.primitives.batch`); each run is limited alone (a mask, not a branch), and
+    the gain is the same for every run.
+
     ``config`` (:class:`~drake_uuv.scenario.PaperTracking`) gives α, q*, its frame and the
     limit; the ``setting`` the period t.
     """
 
-    def __init__(self, config: PaperTracking, *, setting: TrackingSetting) -> None:
+    def __init__(
+        self, config: PaperTracking, *, setting: TrackingSetting, batch_size: int = 1
+    ) -> None:
         super().__init__()
+        self.batch_size = B = batch_size_field(batch_size)
         self._time_step = setting.time_step
         self._alpha = float(config.alpha)
         self._k_p, self._k_v = paper_gains(self._time_step, config.alpha)
         self._q_star = np.asarray(config.desired_relative_position, dtype=float)
-        reference_rotation(np.eye(3), config.reference_frame)  # Fail early on a bad frame.
+        reference_rotations(np.eye(3), config.reference_frame)  # Fail early on a bad frame.
         self._frame = config.reference_frame
         self._max_acceleration = config.max_acceleration
-        self._x_hat_port = self.DeclareVectorInputPort("x_TU_hat", 6)
-        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
-        self._u1_port = self.DeclareVectorOutputPort("u1_B", 3, self._calc_u1)
-        self.DeclareVectorOutputPort("u1_W", 3, self._calc_u1_W)
+        self._x_hat_port = self.DeclareVectorInputPort("x_TU_hat", 6 * B)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9 * B)
+        self._u1_port = self.DeclareVectorOutputPort("u1_B", 3 * B, self._calc_u1)
+        self.DeclareVectorOutputPort("u1_W", 3 * B, self._calc_u1_W)
 
     @property
     def gain(self) -> np.ndarray:
@@ -66,22 +77,21 @@ class PaperTrackingController(LeafSystem):
         return paper_gain_matrix(self._time_step, self._alpha)
 
     def _u1(self, context: Context) -> np.ndarray:
-        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
+        """``u1`` (B×3), each run limited alone (``|R u1| = |u1|``)."""
+        B = self.batch_size
+        R_WB = per_run(self._attitude_port.Eval(context), B, 3, 3)
         q_star_B = self._q_star  # the paper's: q* in the body frame
         if self._frame != "body":
-            q_star_B = R_WB.T @ (reference_rotation(R_WB, self._frame) @ self._q_star)
+            q_star_B = rotate_back(R_WB, rotate(reference_rotations(R_WB, self._frame), q_star_B))
         u1 = paper_tracking_command(
-            self._x_hat_port.Eval(context), R_WB, q_star_B, self._k_p, self._k_v
+            per_run(self._x_hat_port.Eval(context), B), R_WB, q_star_B, self._k_p, self._k_v
         )
-        if self._max_acceleration is not None:  # |R u1| = |u1|
-            u1_norm = float(np.sqrt(u1 @ u1))
-            if u1_norm > self._max_acceleration:
-                u1 *= self._max_acceleration / u1_norm
-        return u1
+        return saturate_norm(u1, self._max_acceleration)
 
     def _calc_u1(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._u1(context))
+        output.set_value(self._u1(context).ravel())
 
     def _calc_u1_W(self, context: Context, output: BasicVector) -> None:
-        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        output.set_value(R_WB @ self._u1_port.Eval(context))
+        B = self.batch_size
+        R_WB = per_run(self._attitude_port.Eval(context), B, 3, 3)
+        output.set_value(rotate(R_WB, per_run(self._u1_port.Eval(context), B)).ravel())
