@@ -9,9 +9,10 @@ from drake_uuv.primitives.setting import time_step_field
 class TrackingSetting:
     """What every system of the tracking slot gets besides its own configuration.
 
-    A tracking controller is built as ``cls(config, setting=TrackingSetting(...), batch_size=B)``; the
-    slot's factory (:func:`drake_uuv.tracking.make_tracking_controller`) makes the setting
-    from the scenario. Fields:
+    A tracking controller is built as
+    ``cls(config, setting=TrackingSetting(...), batch_size=B)``; the slot's factory
+    (:func:`drake_uuv.tracking.make_tracking_controller`) makes the setting from the scenario.
+    Fields:
 
     - ``time_step``: t [s], the period of the loop (the scenario's ``time_step``): the
       relative double integrator the gains are designed on steps by it.
