@@ -6,7 +6,7 @@ truth, from the plant), and any random input it declares (``navigation_noise``,
 ``R_WB_nav`` (row-major), what the vehicle believes of itself. Every consumer of the vehicle's
 state (the estimator, the attitude generators, the tracking laws) reads these, never the
 truth. See :mod:`drake_uuv.signals`. Each system is built as
-``cls(config, setting=NavigationSetting(...))``
+``cls(config, setting=NavigationSetting(...), batch_size=B)``
 (:class:`~drake_uuv.navigation.base.NavigationSetting`).
 """
 

@@ -9,9 +9,10 @@ from drake_uuv.primitives.setting import InitialStateSetting
 class NavigationSetting(InitialStateSetting):
     """What every system of the navigation slot gets besides its own configuration.
 
-    A navigation system is built as ``cls(config, setting=NavigationSetting(...))``; the
-    slot's factory (:func:`drake_uuv.navigation.make_navigation`) makes the setting from the
-    scenario (:func:`drake_uuv.navigation.factory.navigation_setting`). Fields:
+    A navigation system is built as
+    ``cls(config, setting=NavigationSetting(...), batch_size=B)``; the slot's factory
+    (:func:`drake_uuv.navigation.make_navigation`) makes the setting from the scenario
+    (:func:`drake_uuv.navigation.factory.navigation_setting`). Fields:
 
     - ``time_step``: t [s], the period of the loop (the scenario's ``time_step``): the
       instruments are sampled at its ticks and dead reckoning integrates over it.

@@ -8,7 +8,8 @@ from drake_uuv.navigation.perfect_navigation import PerfectNavigationSystem
 from drake_uuv.primitives.variant_table import variant_system
 from drake_uuv.scenario import InertialNavigation, PerfectNavigation, Scenario
 
-#: Variant dataclass → its system, built as ``cls(config, setting=NavigationSetting(...))``.
+#: Variant dataclass → its system, built as
+#: ``cls(config, setting=NavigationSetting(...), batch_size=B)``.
 NAVIGATIONS: dict[type, type[System]] = {
     PerfectNavigation: PerfectNavigationSystem,
     InertialNavigation: InertialNavigationSystem,
@@ -22,10 +23,6 @@ def navigation_setting(scenario: Scenario) -> NavigationSetting:
 
 
 def make_navigation(scenario: Scenario, *, batch_size: int = 1) -> System:
-    """The navigation of ``scenario.navigation``'s variant."""
+    """The navigation of ``scenario.navigation``'s variant, stepping ``batch_size`` runs."""
     cls = variant_system(NAVIGATIONS, scenario.navigation, "navigation")
-    return cls(scenario.navigation, setting=navigation_setting(scenario), **_TRANSITIONAL(batch_size))
-
-
-def _TRANSITIONAL(batch_size: int) -> dict:  # TRANSITIONAL until the slot's systems batch
-    return {} if batch_size == 1 else {"batch_size": batch_size}
+    return cls(scenario.navigation, setting=navigation_setting(scenario), batch_size=batch_size)

@@ -1,11 +1,12 @@
 """An AHRS with a compass, a DVL and dead reckoning: what the vehicle believes of itself."""
 
+import math
 from collections.abc import Callable
 
 import numpy as np
+from numba import njit
 from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
-from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import (
     BasicVector,
     CacheEntry,
@@ -15,12 +16,11 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
+from drake_uuv.models.tracking_laws import rotate, rotate_back
 from drake_uuv.navigation.base import NavigationSetting
 from drake_uuv.primitives import declare_random_input
+from drake_uuv.primitives.batch import batch_size_field, per_run
 from drake_uuv.scenario.navigation import InertialNavigation
-
-_ZERO3 = np.zeros(3)
-_ZERO3.setflags(write=False)
 
 
 class InertialNavigationSystem(LeafSystem):
@@ -78,12 +78,20 @@ class InertialNavigationSystem(LeafSystem):
     ``[e_p(k−1), e_v(k−1), started]`` (7), written at each tick (``started`` is 0 at k = 0,
     where ``e_p = 0``).
 
+    Sizes are per run: with ``batch_size`` B every port and state holds B runs row-major
+    (:mod:`drake_uuv.primitives.batch`); each run latches its own biases from its own first
+    draw, and takes its own branches (the roll-pitch-yaw round trip is a compiled loop over
+    runs, Drake's ``RollPitchYaw`` algorithm written out).
+
     ``config`` (:class:`~drake_uuv.scenario.InertialNavigation`) gives the σ of each error (in
     degrees for the angles); the ``setting`` the period t.
     """
 
-    def __init__(self, config: InertialNavigation, *, setting: NavigationSetting) -> None:
+    def __init__(
+        self, config: InertialNavigation, *, setting: NavigationSetting, batch_size: int = 1
+    ) -> None:
         super().__init__()
+        self.batch_size = B = batch_size_field(batch_size)
         config.validate("navigation")
         errors = config.error_figures()
         self._time_step = setting.time_step
@@ -95,14 +103,14 @@ class InertialNavigationSystem(LeafSystem):
         self._attitude_exact = not (errors.attitude_noise.any() or errors.heading_bias > 0.0)
         self._velocity_exact = errors.velocity_noise == 0.0 and errors.velocity_bias == 0.0
 
-        self._p_port = self.DeclareVectorInputPort("p_WU", 3)
-        self._v_port = self.DeclareVectorInputPort("v_WU", 3)
-        self._R_port = self.DeclareVectorInputPort("R_WB", 9)
+        self._p_port = self.DeclareVectorInputPort("p_WU", 3 * B)
+        self._v_port = self.DeclareVectorInputPort("v_WU", 3 * B)
+        self._R_port = self.DeclareVectorInputPort("R_WB", 9 * B)
         gaussian = RandomDistribution.kGaussian
-        self._noise_port = declare_random_input(self, "navigation_noise", 6, gaussian)
-        self._bias_port = declare_random_input(self, "navigation_bias", 4, gaussian)
-        self._bias_index = self.DeclareDiscreteState(4)
-        self._dead_reckoning_index = self.DeclareDiscreteState(7)
+        self._noise_port = declare_random_input(self, "navigation_noise", 6, gaussian, batch_size=B)
+        self._bias_port = declare_random_input(self, "navigation_bias", 4, gaussian, batch_size=B)
+        self._bias_index = self.DeclareDiscreteState(4 * B)
+        self._dead_reckoning_index = self.DeclareDiscreteState(7 * B)
         self.DeclareInitializationDiscreteUpdateEvent(self._latch_bias)
         self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._dead_reckon)
 
@@ -121,18 +129,21 @@ class InertialNavigationSystem(LeafSystem):
             "position error", self._calc_position_error, velocity_error, dead_reckoning
         )
         self.DeclareVectorOutputPort(
-            "p_WU_nav", 3, self._calc_position,
+            "p_WU_nav", 3 * B, self._calc_position,
             {self._position_error.ticket(), self._p_port.ticket()},
         )  # fmt: skip
         self.DeclareVectorOutputPort(
-            "v_WU_nav", 3, self._calc_velocity, {velocity_error, self._v_port.ticket()}
+            "v_WU_nav", 3 * B, self._calc_velocity, {velocity_error, self._v_port.ticket()}
         )
-        self.DeclareVectorOutputPort("R_WB_nav", 9, self._calc_R_WB_nav, {self._attitude.ticket()})
+        self.DeclareVectorOutputPort(
+            "R_WB_nav", 9 * B, self._calc_R_WB_nav, {self._attitude.ticket()}
+        )
 
-    def latched_bias(self, context: Context) -> tuple[float, np.ndarray]:
-        """The run's ``(b_ψ [rad], b_v (3, body) [m/s])``, as latched at initialization."""
-        bias = context.get_discrete_state(self._bias_index).get_value()
-        return float(bias[0]), bias[1:].copy()
+    def latched_bias(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        """Each run's ``(b_ψ (B,) [rad], b_v (B×3, body) [m/s])``, as latched at
+        initialization."""
+        bias = per_run(context.get_discrete_state(self._bias_index).get_value(), self.batch_size)
+        return bias[:, 0].copy(), bias[:, 1:].copy()
 
     def _declare_cache(self, description: str, calc: Callable, *tickets: object) -> CacheEntry:
         return self.DeclareCacheEntry(
@@ -141,57 +152,152 @@ class InertialNavigationSystem(LeafSystem):
             set(tickets),
         )
 
+    def _bias(self, context: Context) -> np.ndarray:
+        """The latched biases ``[b_ψ, b_v]`` (B×4)."""
+        return per_run(context.get_discrete_state(self._bias_index).get_value(), self.batch_size)
+
+    def _noise(self, context: Context) -> np.ndarray:
+        """The step's draws (B×6)."""
+        return per_run(self._noise_port.Eval(context), self.batch_size)
+
     def _latch_bias(self, context: Context, discrete_state: DiscreteValues) -> None:
-        discrete_state.set_value(self._bias_index, self._bias_sigma * self._bias_port.Eval(context))
-        discrete_state.set_value(self._dead_reckoning_index, np.zeros(7))
+        B = self.batch_size
+        draws = per_run(self._bias_port.Eval(context), B)
+        discrete_state.set_value(self._bias_index, (self._bias_sigma * draws).ravel())
+        discrete_state.set_value(self._dead_reckoning_index, np.zeros(7 * B))
 
     def _calc_attitude(self, context: Context, value: AbstractValue) -> None:
-        """``R_WB_nav`` (3×3)."""
-        R = self._R_port.Eval(context).reshape(3, 3)
+        """``R_WB_nav`` (B×3×3)."""
+        R = per_run(self._R_port.Eval(context), self.batch_size, 3, 3)
         if self._attitude_exact:
             value.set_value(R)
             return
-        delta = self._attitude_sigma * self._noise_port.Eval(context)[:3]
-        delta[2] += context.get_discrete_state(self._bias_index).get_value()[0]
-        rpy = RollPitchYaw(RotationMatrix(R)).vector()
-        value.set_value(RollPitchYaw(rpy + delta).ToRotationMatrix().matrix())
+        delta = self._attitude_sigma * self._noise(context)[:, :3]
+        delta[:, 2] += self._bias(context)[:, 0]
+        value.set_value(perturbed_attitudes(R, delta))
 
     def _calc_velocity_error(self, context: Context, value: AbstractValue) -> None:
-        """``e_v = R_WB_nav (R_WBᵀ v_WU + b_v + n_v) − v_WU`` (3)."""
+        """``e_v = R_WB_nav (R_WBᵀ v_WU + b_v + n_v) − v_WU`` (B×3)."""
         R_nav = self._attitude.Eval(context)
         if self._attitude_exact:  # R_WB_nav = R_WB: the DVL's error alone
-            value.set_value(_ZERO3 if self._velocity_exact else R_nav @ self._dvl_error(context))
+            if self._velocity_exact:
+                value.set_value(np.zeros((self.batch_size, 3)))
+            else:
+                value.set_value(rotate(R_nav, self._dvl_error(context)))
             return
-        R = self._R_port.Eval(context).reshape(3, 3)
-        v = self._v_port.Eval(context)
-        v_B = R.T @ v
+        R = per_run(self._R_port.Eval(context), self.batch_size, 3, 3)
+        v = per_run(self._v_port.Eval(context), self.batch_size)
+        v_B = rotate_back(R, v)
         if not self._velocity_exact:
             v_B += self._dvl_error(context)
-        value.set_value(R_nav @ v_B - v)
+        value.set_value(rotate(R_nav, v_B) - v)
 
     def _dvl_error(self, context: Context) -> np.ndarray:
-        """``b_v + n_v`` (3, body frame)."""
-        b_v = context.get_discrete_state(self._bias_index).get_value()[1:]
-        return b_v + self._velocity_sigma * self._noise_port.Eval(context)[3:]
+        """``b_v + n_v`` (B×3, body frame)."""
+        return self._bias(context)[:, 1:] + self._velocity_sigma * self._noise(context)[:, 3:]
 
     def _calc_position_error(self, context: Context, value: AbstractValue) -> None:
-        """``e_p(k)`` (3): the trapezoid step from ``e_p(k−1)``, or 0 at k = 0."""
-        state = context.get_discrete_state(self._dead_reckoning_index).get_value()
-        if state[6] == 0.0:
-            value.set_value(_ZERO3)
-            return
+        """``e_p(k)`` (B×3): the trapezoid step from ``e_p(k−1)``, or 0 at k = 0 (per run)."""
+        state = per_run(
+            context.get_discrete_state(self._dead_reckoning_index).get_value(), self.batch_size
+        )
         e_v = self._velocity_error.Eval(context)
-        value.set_value(state[:3] + self._half_step * (state[3:6] + e_v))
+        with np.errstate(invalid="ignore", over="ignore"):
+            step = state[:, :3] + self._half_step * (state[:, 3:6] + e_v)
+        value.set_value(np.where(state[:, 6:7] == 0.0, 0.0, step))
 
     def _dead_reckon(self, context: Context, discrete_state: DiscreteValues) -> None:
         e_p, e_v = self._position_error.Eval(context), self._velocity_error.Eval(context)
-        discrete_state.set_value(self._dead_reckoning_index, np.concatenate([e_p, e_v, [1.0]]))
+        started = np.ones((self.batch_size, 1))
+        discrete_state.set_value(
+            self._dead_reckoning_index, np.concatenate([e_p, e_v, started], axis=1).ravel()
+        )
 
     def _calc_position(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._p_port.Eval(context) + self._position_error.Eval(context))
+        p = per_run(self._p_port.Eval(context), self.batch_size)
+        output.set_value((p + self._position_error.Eval(context)).ravel())
 
     def _calc_velocity(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._v_port.Eval(context) + self._velocity_error.Eval(context))
+        v = per_run(self._v_port.Eval(context), self.batch_size)
+        output.set_value((v + self._velocity_error.Eval(context)).ravel())
 
     def _calc_R_WB_nav(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._attitude.Eval(context).ravel())
+
+
+def perturbed_attitudes(R: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """``RotationMatrix(RollPitchYaw(rpy(R) + δ))`` (B×3×3) of attitudes ``R`` (B×3×3) and
+    angle increments ``δ`` (B×3, roll, pitch, yaw) [rad]: Drake's ``RollPitchYaw`` of a
+    rotation matrix (from its quaternion and the matrix, robust near pitch ±90°) and its
+    rotation matrix, written out as a compiled loop over runs (rounding may differ from
+    Drake's in the last bits)."""
+    R = np.ascontiguousarray(R, dtype=float)
+    delta = np.ascontiguousarray(delta, dtype=float)
+    out = np.empty(R.shape)
+    _perturbed_attitude_kernel(R.reshape(-1, 3, 3), delta.reshape(-1, 3), out.reshape(-1, 3, 3))
+    return out
+
+
+@njit(cache=True)
+def _perturbed_attitude_kernel(R: np.ndarray, delta: np.ndarray, out: np.ndarray) -> None:
+    for n in range(R.shape[0]):
+        roll, pitch, yaw = _roll_pitch_yaw(R[n])
+        _rotation_from_roll_pitch_yaw(
+            roll + delta[n, 0], pitch + delta[n, 1], yaw + delta[n, 2], out[n]
+        )
+
+
+@njit(cache=True)
+def _roll_pitch_yaw(M: np.ndarray) -> tuple[float, float, float]:
+    """Drake's ``RollPitchYaw(RotationMatrix(M))``: pitch from the matrix, roll and yaw from
+    its canonical quaternion (exact at pitch ±90°, where the matrix alone loses them)."""
+    trace = M[0, 0] + M[1, 1] + M[2, 2]
+    if trace >= M[0, 0] and trace >= M[1, 1] and trace >= M[2, 2]:
+        w, x, y, z = 1.0 + trace, M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1]
+    elif M[0, 0] >= M[1, 1] and M[0, 0] >= M[2, 2]:
+        w, x = M[2, 1] - M[1, 2], 1.0 - (trace - 2.0 * M[0, 0])
+        y, z = M[0, 1] + M[1, 0], M[0, 2] + M[2, 0]
+    elif M[1, 1] >= M[2, 2]:
+        w, x = M[0, 2] - M[2, 0], M[0, 1] + M[1, 0]
+        y, z = 1.0 - (trace - 2.0 * M[1, 1]), M[1, 2] + M[2, 1]
+    else:
+        w, x = M[1, 0] - M[0, 1], M[0, 2] + M[2, 0]
+        y, z = M[1, 2] + M[2, 1], 1.0 - (trace - 2.0 * M[2, 2])
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / norm, x / norm, y / norm, z / norm
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    R22, R21, R10, R00 = M[2, 2], M[2, 1], M[1, 0], M[0, 0]
+    pitch = math.atan2(-M[2, 0], math.sqrt((R22 * R22 + R21 * R21 + R10 * R10 + R00 * R00) / 2))
+    y_a, x_a, y_b, x_b = x + z, w - y, z - x, w + y
+    eps = 2.220446049250313e-16
+    z_a = 0.0 if abs(y_a) <= eps and abs(x_a) <= eps else math.atan2(y_a, x_a)
+    z_b = 0.0 if abs(y_b) <= eps and abs(x_b) <= eps else math.atan2(y_b, x_b)
+    roll, yaw = z_a - z_b, z_a + z_b
+    if roll > math.pi:
+        roll -= 2.0 * math.pi
+    if roll < -math.pi:
+        roll += 2.0 * math.pi
+    if yaw > math.pi:
+        yaw -= 2.0 * math.pi
+    if yaw < -math.pi:
+        yaw += 2.0 * math.pi
+    return roll, pitch, yaw
+
+
+@njit(cache=True)
+def _rotation_from_roll_pitch_yaw(roll: float, pitch: float, yaw: float, out: np.ndarray) -> None:
+    """Drake's ``RollPitchYaw(roll, pitch, yaw).ToRotationMatrix()``: ``Rz Ry Rx`` (the same
+    bits)."""
+    c0, c1, c2 = math.cos(roll), math.cos(pitch), math.cos(yaw)
+    s0, s1, s2 = math.sin(roll), math.sin(pitch), math.sin(yaw)
+    c2_s1, s2_s1 = c2 * s1, s2 * s1
+    out[0, 0] = c2 * c1
+    out[0, 1] = c2_s1 * s0 - s2 * c0
+    out[0, 2] = c2_s1 * c0 + s2 * s0
+    out[1, 0] = s2 * c1
+    out[1, 1] = s2_s1 * s0 + c2 * c0
+    out[1, 2] = s2_s1 * c0 - c2 * s0
+    out[2, 0] = -s1
+    out[2, 1] = c1 * s0
+    out[2, 2] = c1 * c0

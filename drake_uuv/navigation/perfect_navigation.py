@@ -4,6 +4,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import PassThrough
 
 from drake_uuv.navigation.base import NavigationSetting
+from drake_uuv.primitives.batch import batch_size_field
 from drake_uuv.scenario.navigation import PerfectNavigation
 
 #: Each truth input → its navigated output, and their size.
@@ -33,15 +34,21 @@ class PerfectNavigationSystem(Diagram):
       plant's outputs).
     - ``p_WU_nav``, ``v_WU_nav`` (3 each), ``R_WB_nav`` (9, row-major): the same values.
 
+    Sizes are per run: with ``batch_size`` B every port holds B runs row-major
+    (:mod:`drake_uuv.primitives.batch`), each copied.
+
     ``config`` (:class:`~drake_uuv.scenario.PerfectNavigation`) has no parameters, and the
     ``setting`` is not needed.
     """
 
-    def __init__(self, config: PerfectNavigation, *, setting: NavigationSetting) -> None:
+    def __init__(
+        self, config: PerfectNavigation, *, setting: NavigationSetting, batch_size: int = 1
+    ) -> None:
         super().__init__()
+        self.batch_size = B = batch_size_field(batch_size)
         builder = DiagramBuilder()
         for truth, navigated, size in PORTS:
-            copy = builder.AddNamedSystem(truth, PassThrough(size))
+            copy = builder.AddNamedSystem(truth, PassThrough(size * B))
             builder.ExportInput(copy.get_input_port(), truth)
             builder.ExportOutput(copy.get_output_port(), navigated)
         builder.BuildInto(self)

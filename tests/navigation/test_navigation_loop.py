@@ -169,7 +169,7 @@ def test_the_biases_over_many_seeds_have_their_sigma() -> None:
         context = built.diagram.CreateDefaultContext()
         built.set_random_context(context, seed)
         built.diagram.ExecuteInitializationEvents(context)
-        b_psi, b_v = navigation.latched_bias(navigation.GetMyContextFromRoot(context))
+        (b_psi,), (b_v,) = navigation.latched_bias(navigation.GetMyContextFromRoot(context))
         heading.append(b_psi)
         dvl.append(b_v)
     _check_normal(np.array(heading)[:, None], math.radians(2.0))
