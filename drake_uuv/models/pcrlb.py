@@ -69,17 +69,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
-
-try:  # the gufunc behind np.linalg.inv, without its per-call checks (same LAPACK call)
-    from numpy.linalg import _umath_linalg
-
-    def _inv(a: np.ndarray) -> np.ndarray:
-        return _umath_linalg.inv(a, signature="d->d")
-
-except (ImportError, AttributeError):  # pragma: no cover - other numpy layouts
-    _inv = np.linalg.inv
 
 
 def symmetrise(P: np.ndarray) -> np.ndarray:
@@ -94,12 +86,21 @@ def _as_trajectory(a: np.ndarray, name: str, width: int) -> np.ndarray:
     return a
 
 
-def _availability(available: np.ndarray | None, steps: int) -> np.ndarray:
+def _as_trajectories(a: np.ndarray, name: str, width: int) -> np.ndarray:
+    """A trajectory (N×width) or a stack of them (…×N×width)."""
+    a = np.asarray(a, dtype=float)
+    if a.ndim < 2 or a.shape[-1] != width:
+        raise ValueError(f"{name} must have shape (N, {width}), got {a.shape}")
+    return a
+
+
+def _availability(available: np.ndarray | None, shape: tuple[int, ...] | int) -> np.ndarray:
+    shape = (shape, 2) if isinstance(shape, int) else (*shape, 2)
     if available is None:
-        return np.ones((steps, 2), dtype=bool)
+        return np.ones(shape, dtype=bool)
     mask = np.asarray(available, dtype=bool)
-    if mask.shape != (steps, 2):
-        raise ValueError(f"available must have shape ({steps}, 2), got {mask.shape}")
+    if mask.shape != shape:
+        raise ValueError(f"available must have shape {shape}, got {mask.shape}")
     return mask
 
 
@@ -116,22 +117,47 @@ def measurement_information(
     range noise variances, ``f = samples_per_step``; ``available`` (N×2 bool, default all
     true) says which sonar returned at each step (a missing return carries no information).
     Returns (N×6×6); only the position block is non-zero: ``Σ_i (f/η_i) u_i u_iᵀ`` over the
-    available sonars, with ``u_i`` the unit line-of-sight vectors.
+    available sonars, with ``u_i`` the unit line-of-sight vectors. Leading axes (runs:
+    ``B×N×3`` → ``B×N×6×6``) go element by element, each run the same bits as alone.
     """
-    q = _as_trajectory(q_true, "q_true", 3)
-    qs = _as_trajectory(q_s, "q_s", 3)
+    q = _as_trajectories(q_true, "q_true", 3)
+    qs = _as_trajectories(q_s, "q_s", 3)
     if qs.shape != q.shape:
         raise ValueError(f"q_s shape {qs.shape} differs from q_true shape {q.shape}")
-    mask = _availability(available, q.shape[0])
+    mask = _availability(available, q.shape[:-1])
     eta = np.asarray(eta, dtype=float).reshape(2)
     weights = float(samples_per_step) / eta
-    M = np.zeros((q.shape[0], 6, 6))
-    for i, sign in enumerate((0.5, -0.5)):
-        r = q + sign * qs
-        u = r / np.maximum(np.linalg.norm(r, axis=1, keepdims=True), 1e-9)
-        w = np.where(mask[:, i], weights[i], 0.0)
-        M[:, :3, :3] += w[:, None, None] * u[:, :, None] * u[:, None, :]
+    M = np.zeros((*q.shape[:-1], 6, 6))
+    _information_kernel(
+        np.ascontiguousarray(q).reshape(-1, 3), np.ascontiguousarray(qs).reshape(-1, 3),
+        np.ascontiguousarray(mask).reshape(-1, 2), weights, M.reshape(-1, 6, 6),
+    )  # fmt: skip
     return M
+
+
+@njit(cache=True)
+def _information_kernel(
+    q: np.ndarray, q_s: np.ndarray, mask: np.ndarray, weights: np.ndarray, M: np.ndarray
+) -> None:
+    """``Σ_i w_i u_i u_iᵀ`` into each step's position block (``M`` zero on entry), with
+    ``u_i = r_i / max(|r_i|, 1e-9)``, ``r_i = q ± ½ q_s``, ``w_i`` the sonar's weight where it
+    returned (numpy's order of operations, step by step)."""
+    u = np.empty(3)
+    for n in range(q.shape[0]):
+        for i in range(2):
+            sign = 0.5 if i == 0 else -0.5
+            squared = 0.0
+            for a in range(3):
+                u[a] = q[n, a] + sign * q_s[n, a]
+                squared += u[a] * u[a]
+            norm = max(np.sqrt(squared), 1e-9)
+            for a in range(3):
+                u[a] = u[a] / norm
+            w = weights[i] if mask[n, i] else 0.0
+            for a in range(3):
+                wu = w * u[a]
+                for b in range(3):
+                    M[n, a, b] += wu * u[b]
 
 
 def pcrlb_recursion(
@@ -143,63 +169,120 @@ def pcrlb_recursion(
     averaged over runs if a Monte Carlo bound is wanted), ``P0`` the prior covariance of
     ``x(0)`` (the filter's ``P(0|−1)``), ``W`` the target acceleration covariance.
     Returns the bounds ``J(k)⁻¹`` (N×6×6) on the filtered estimate's error covariance.
-    Leading batch dimensions (``B×N×6×6``) run independent recursions at once, for the
-    price of one (the loop is bound by numpy's per-call cost, not by arithmetic).
+    Leading batch dimensions (``B×N×6×6``) run independent recursions at once, each the same
+    bits as alone (a compiled loop over them, :func:`_pcrlb_kernel`). A recursion whose
+    matrix to invert is not positive definite (a singular prior, a non-finite trajectory) is
+    NaN from that step on, and leaves the others.
     """
     M = np.asarray(information, dtype=float)
     if M.ndim < 3 or M.shape[-2:] != (6, 6):
         raise ValueError(f"information must have shape (N, 6, 6), got {M.shape}")
-    A, _ = double_integrator(time_step)
+    double_integrator(time_step)  # checks the step
     Q = process_noise_covariance(W, time_step)
     P0 = symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
-    bounds = _pcrlb_loop(M, P0, A, Q)
-    if bounds is None:  # a singular or non-finite step: numpy's checked path raises or agrees
-        bounds = _pcrlb_loop_checked(M, P0, A, Q)
+    bounds = np.empty(M.shape)
+    _pcrlb_kernel(
+        np.ascontiguousarray(M).reshape(-1, *M.shape[-3:]), P0, Q, float(time_step),
+        bounds.reshape(-1, *M.shape[-3:]),
+    )  # fmt: skip
     return bounds
 
 
-def _pcrlb_loop_checked(M: np.ndarray, P0: np.ndarray, A: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    """The recursion of :func:`pcrlb_recursion` through ``np.linalg.inv`` (raises if singular)."""
-    P_pred = np.broadcast_to(P0, M.shape[:-3] + (6, 6))
-    bounds = np.empty_like(M)
-    for k in range(M.shape[-3]):
-        if k > 0:
-            P_pred = symmetrise(A @ bounds[..., k - 1, :, :] @ A.T + Q)  # (Q + A J⁻¹ Aᵀ)
-        J = symmetrise(np.linalg.inv(P_pred) + M[..., k, :, :])
-        bounds[..., k, :, :] = symmetrise(np.linalg.inv(J))
-    return bounds
-
-
-def _pcrlb_loop(M: np.ndarray, P0: np.ndarray, A: np.ndarray, Q: np.ndarray) -> np.ndarray | None:
-    """The same arithmetic, operation for operation, as :func:`_pcrlb_loop_checked`, without
-    ``np.linalg``'s per-call checks and temporaries (the loop is bound by numpy's per-call
-    cost); None if any bound is not finite, so the caller can take the checked path."""
-    batch = M.shape[:-3]
-    steps = M.shape[-3]
-    bounds = np.empty_like(M)
-    P_pred = np.empty(batch + (6, 6))
-    P_pred[...] = P0
-    AP = np.empty(batch + (6, 6))
-    work = np.empty(batch + (6, 6))
-    AT = A.T
-    with np.errstate(all="ignore"):
-        for k in range(steps):
+@njit(cache=True)
+def _pcrlb_kernel(M: np.ndarray, P0: np.ndarray, Q: np.ndarray, t: float, out: np.ndarray) -> None:
+    """The recursion of :func:`pcrlb_recursion` for each of ``M``'s runs (R×N×6×6) into
+    ``out``, as a covariance recursion: ``P⁻ = ½(X + Xᵀ)`` with ``X = A P Aᵀ + Q`` (``A`` the
+    double integrator of step t, written out), ``J = ½(Y + Yᵀ)`` with ``Y = P⁻⁻¹ + M``,
+    ``P = J⁻¹`` (inverses by Cholesky: exactly symmetric)."""
+    predicted = np.empty((6, 6))
+    work = np.empty((6, 6))
+    inverse = np.empty((6, 6))
+    L, L_inv, d_inv = np.empty((6, 6)), np.empty((6, 6)), np.empty(6)
+    for r in range(M.shape[0]):
+        predicted[:, :] = P0
+        for k in range(M.shape[1]):
             if k > 0:
-                np.matmul(A, bounds[..., k - 1, :, :], out=AP)
-                np.matmul(AP, AT, out=work)
-                work += Q
-                np.add(work, np.swapaxes(work, -1, -2), out=P_pred)
-                P_pred *= 0.5
-            np.add(_inv(P_pred), M[..., k, :, :], out=work)
-            np.add(work, np.swapaxes(work, -1, -2), out=AP)
-            AP *= 0.5
-            J_inv = _inv(AP)
-            out = bounds[..., k, :, :]
-            np.add(J_inv, np.swapaxes(J_inv, -1, -2), out=out)
-            out *= 0.5
-    if not np.isfinite(bounds).all():
-        return None
-    return bounds
+                _predict(out[r, k - 1], Q, t, work)
+                for i in range(6):
+                    for j in range(6):
+                        predicted[i, j] = 0.5 * (work[i, j] + work[j, i])
+            _spd_inverse6(predicted, inverse, L, L_inv, d_inv)
+            for i in range(6):
+                for j in range(6):
+                    work[i, j] = inverse[i, j] + M[r, k, i, j]
+            for i in range(6):
+                for j in range(6):
+                    inverse[i, j] = 0.5 * (work[i, j] + work[j, i])
+            _spd_inverse6(inverse, out[r, k], L, L_inv, d_inv)
+
+
+@njit(cache=True)
+def _predict(P: np.ndarray, Q: np.ndarray, t: float, out: np.ndarray) -> None:
+    """``A P Aᵀ + Q`` for the double integrator ``A = [[I, tI], [0, I]]``: with ``P`` in 3×3
+    blocks ``[[P11, P12], [P21, P22]]``, ``A P Aᵀ = [[P11 + t P21 + t (P12 + t P22),
+    P12 + t P22], [P21 + t P22, P22]]``."""
+    for i in range(3):
+        for j in range(3):
+            p12 = P[i, j + 3] + t * P[i + 3, j + 3]
+            out[i, j] = P[i, j] + t * P[i + 3, j] + t * p12 + Q[i, j]
+            out[i, j + 3] = p12 + Q[i, j + 3]
+            out[i + 3, j] = P[i + 3, j] + t * P[i + 3, j + 3] + Q[i + 3, j]
+            out[i + 3, j + 3] = P[i + 3, j + 3] + Q[i + 3, j + 3]
+
+
+@njit(cache=True)
+def cholesky6(S: np.ndarray, L: np.ndarray, d_inv: np.ndarray) -> bool:
+    """The lower Cholesky factor of a symmetric 6×6 ``S`` (lower triangle read) into ``L``
+    (its upper triangle left as is) and the reciprocals of its diagonal into ``d_inv``; False
+    where ``S`` is not numerically positive definite or not finite. (The size is fixed so the
+    compiler unrolls the loops.)"""
+    for j in range(6):
+        d = S[j, j]
+        for m in range(j):
+            d -= L[j, m] * L[j, m]
+        if not d > 0.0:  # NaN too
+            return False
+        d = np.sqrt(d)
+        L[j, j] = d
+        d_inv[j] = 1.0 / d
+        for i in range(j + 1, 6):
+            v = S[i, j]
+            for m in range(j):
+                v -= L[i, m] * L[j, m]
+            L[i, j] = v * d_inv[j]
+    return True
+
+
+@njit(cache=True)
+def lower_inverse6(L: np.ndarray, d_inv: np.ndarray, L_inv: np.ndarray) -> None:
+    """``L⁻¹`` into ``L_inv``'s lower triangle, of a 6×6 lower-triangular ``L`` whose
+    diagonal's reciprocals are ``d_inv``."""
+    for j in range(6):
+        L_inv[j, j] = d_inv[j]
+        for i in range(j + 1, 6):
+            v = 0.0
+            for m in range(j, i):
+                v -= L[i, m] * L_inv[m, j]
+            L_inv[i, j] = v * d_inv[i]
+
+
+@njit(cache=True)
+def _spd_inverse6(
+    S: np.ndarray, out: np.ndarray, L: np.ndarray, L_inv: np.ndarray, d_inv: np.ndarray
+) -> None:
+    """``S⁻¹`` of a symmetric positive definite 6×6 ``S`` by Cholesky, ``L⁻ᵀ L⁻¹`` (exactly
+    symmetric), into ``out``; NaN where ``S`` is not numerically positive definite."""
+    if not cholesky6(S, L, d_inv):
+        out[:, :] = np.nan
+        return
+    lower_inverse6(L, d_inv, L_inv)
+    for i in range(6):
+        for j in range(i + 1):
+            v = 0.0
+            for m in range(i, 6):
+                v += L_inv[m, i] * L_inv[m, j]
+            out[i, j] = v
+            out[j, i] = v
 
 
 def pcrlb_along_trajectory(
@@ -323,10 +406,17 @@ def bound_rmse(covs: np.ndarray, start: int) -> tuple[float, float]:
 
     Compare with an estimator's ``sqrt(mean over runs and k ≥ start of |x̂ − x|²)``.
     """
+    position, velocity = bound_rmse_runs(np.asarray(covs, dtype=float)[np.newaxis], start)
+    return float(position[0]), float(velocity[0])
+
+
+def bound_rmse_runs(covs: np.ndarray, start: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`bound_rmse` of each run's covariances (…×N×6×6 → two … arrays), along each
+    run's own steps."""
     covs = np.asarray(covs, dtype=float)
-    if not 0 <= start < covs.shape[0]:
-        raise ValueError(f"start must be in [0, {covs.shape[0]}), got {start}")
-    tail = covs[start:]
-    position = np.trace(tail[:, :3, :3], axis1=1, axis2=2).mean()
-    velocity = np.trace(tail[:, 3:, 3:], axis1=1, axis2=2).mean()
-    return float(np.sqrt(position)), float(np.sqrt(velocity))
+    if not 0 <= start < covs.shape[-3]:
+        raise ValueError(f"start must be in [0, {covs.shape[-3]}), got {start}")
+    tail = covs[..., start:, :, :]
+    position = np.trace(tail[..., :3, :3], axis1=-2, axis2=-1).mean(axis=-1)
+    velocity = np.trace(tail[..., 3:, 3:], axis1=-2, axis2=-1).mean(axis=-1)
+    return np.sqrt(position), np.sqrt(velocity)

@@ -14,6 +14,7 @@ from drake_uuv.models.pcrlb import (
     pcrlb_along_trajectory,
     pcrlb_over_runs,
     pcrlb_recursion,
+    symmetrise,
 )
 from tests.conftest import ETA, T, W
 
@@ -150,18 +151,35 @@ def test_shape_errors_name_the_argument():
         kf_riccati_covariance(np.ones((3, 3)), np.eye(6), W, np.ones(2), T)
 
 
-def test_recursion_fast_loop_matches_np_linalg_and_still_raises_on_singular() -> None:
-    from drake_uuv.models import pcrlb
+def _recursion_by_np_linalg(M: np.ndarray, P0: np.ndarray, A: np.ndarray, Q: np.ndarray):
+    """The recursion written with ``np.linalg.inv``, one step at a time."""
+    bounds = np.empty_like(M)
+    P_pred = np.broadcast_to(P0, M.shape[:-3] + (6, 6))
+    for k in range(M.shape[-3]):
+        if k > 0:
+            P_pred = symmetrise(A @ bounds[..., k - 1, :, :] @ A.T + Q)
+        J = symmetrise(np.linalg.inv(P_pred) + M[..., k, :, :])
+        bounds[..., k, :, :] = symmetrise(np.linalg.inv(J))
+    return bounds
 
+
+def test_the_recursion_is_np_linalgs_and_a_singular_run_is_nan_alone() -> None:
     rng = np.random.default_rng(3)
-    G = rng.standard_normal((2, 40, 6, 6))
+    G = rng.standard_normal((3, 40, 6, 6))
     M = G @ np.swapaxes(G, -1, -2)
     A, _ = double_integrator(0.5)
     Q = process_noise_covariance(0.01 * np.eye(3), 0.5)
-    checked = pcrlb._pcrlb_loop_checked(M, np.eye(6), A, Q)
-    assert np.array_equal(pcrlb.pcrlb_recursion(M, np.eye(6), 0.01 * np.eye(3), 0.5), checked)
-    with pytest.raises(np.linalg.LinAlgError):
-        pcrlb.pcrlb_recursion(np.zeros((3, 6, 6)), np.zeros((6, 6)), np.eye(3), 0.5)
+    bounds = pcrlb_recursion(M, np.eye(6), 0.01 * np.eye(3), 0.5)
+    assert_allclose(bounds, _recursion_by_np_linalg(M, np.eye(6), A, Q), rtol=1e-9, atol=1e-14)
+    for run in range(3):  # each run alone: the same bits
+        alone = pcrlb_recursion(M[run], np.eye(6), 0.01 * np.eye(3), 0.5)
+        assert np.array_equal(bounds[run], alone)
+    M[1, 7] = np.nan  # a failed run: NaN from its step 7 on, the others unchanged
+    failed = pcrlb_recursion(M, np.eye(6), 0.01 * np.eye(3), 0.5)
+    assert np.all(np.isfinite(failed[1, :7])) and np.all(np.isnan(failed[1, 7:]))
+    assert np.array_equal(failed[[0, 2]], bounds[[0, 2]])
+    singular = pcrlb_recursion(np.zeros((3, 6, 6)), np.zeros((6, 6)), np.eye(3), 0.5)
+    assert np.all(np.isnan(singular))
 
 
 def test_bounds_drop_the_information_of_missing_returns() -> None:
