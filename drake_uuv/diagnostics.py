@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drake_uuv.metrics import errors
+from drake_uuv.metrics import batch_log, errors
 from drake_uuv.models.handover import Phase
 from drake_uuv.models.statistics import chi2_ppf, integrated_autocorrelation_time
 from drake_uuv.scenario import HoveringAuv, Scenario
@@ -63,7 +63,36 @@ def run_nees_band(nees: np.ndarray) -> tuple[float, float, float]:
 def run_warnings(
     log: dict[str, np.ndarray], metrics: dict[str, float], scenario: Scenario
 ) -> list[RunWarning]:
-    """The warnings of a run (empty when it kept its assumptions)."""
+    """The warnings of a run (empty when it kept its assumptions): :func:`batch_warnings` of
+    a batch of one."""
+    batch = {name: np.array([value]) for name, value in metrics.items()}
+    return batch_warnings(batch_log(log), batch, scenario)[0]
+
+
+def batch_warnings(
+    log: dict[str, np.ndarray], metrics: dict[str, np.ndarray], scenario: Scenario
+) -> list[list[RunWarning]]:
+    """The warnings of each run of a batch log (B×N×shape signals, ``k`` and ``time`` shared)
+    from its metrics (each a (B,) array, :func:`~drake_uuv.metrics.batch_metrics`): run i's
+    list, as :func:`run_warnings` of its own log. The NEES is computed for the batch at once;
+    the rest, a few checks per run, one run at a time."""
+    nees = errors(log, scenario)["nees"][:, scenario.steady_state_start :]
+    phase = log.get("estimator_phase")
+    return [
+        _warnings(
+            {name: float(value[i]) for name, value in metrics.items()},
+            nees[i],
+            None if phase is None else phase[i],
+            scenario,
+        )
+        for i in range(len(nees))
+    ]
+
+
+def _warnings(
+    metrics: dict[str, float], nees: np.ndarray, phase: np.ndarray | None, scenario: Scenario
+) -> list[RunWarning]:
+    """One run's warnings from its metrics, its steady-state NEES and its estimator's phase."""
     out = []
     vehicle = isinstance(scenario.plant, HoveringAuv)
     saturated = metrics.get("thrust_saturated_fraction", 0.0)
@@ -76,10 +105,10 @@ def run_warnings(
                 "derived from its thrusters)",
             )
         )
-    low, high, _ = run_nees_band(errors(log, scenario)["nees"][scenario.steady_state_start :])
-    nees = metrics.get("nees_mean", float("nan"))
-    if not low <= nees <= high:
-        out.append(RunWarning("nees", _nees_message(nees, low, high, scenario, vehicle)))
+    low, high, _ = run_nees_band(nees)
+    nees_mean = metrics.get("nees_mean", float("nan"))
+    if not low <= nees_mean <= high:
+        out.append(RunWarning("nees", _nees_message(nees_mean, low, high, scenario, vehicle)))
     tracking = metrics.get("tracking_rmse", float("nan"))
     if not tracking <= TRACKING_LIMIT:
         out.append(
@@ -90,7 +119,6 @@ def run_warnings(
                 "fly or a target it cannot follow outruns it)",
             )
         )
-    phase = log.get("estimator_phase")
     if phase is not None and len(phase) and np.all(phase[:, 0] == float(Phase.LINEAR)):
         out.append(
             RunWarning(

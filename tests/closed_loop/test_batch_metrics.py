@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import drake_uuv.metrics as metrics_module
+from drake_uuv.diagnostics import batch_warnings, run_warnings
 from drake_uuv.metrics import (
     _nees,
     batch_metrics,
@@ -169,3 +170,24 @@ def test_errors_of_a_batch_are_each_runs() -> None:
     for i in range(3):
         for name, value in errors(run_log(log, i), scenario).items():
             assert np.array_equal(batch[name][i], value, equal_nan=True), name
+
+
+def test_the_warnings_of_a_batch_are_each_runs() -> None:
+    """Runs that keep their assumptions, lose the target, have an overconfident filter or a
+    NaN log: each run's warnings are those of the run alone."""
+    scenario = _scenario("estimator=!Ekf")
+    log = random_log(np.random.default_rng(8), 4)
+    log["estimator_phase"] = np.zeros((4, STEPS, 2))
+    log["estimator_phase"][2] = 1.0
+    log["x_TU_hat"][3] += 30.0  # far off: tracking is fine, the NEES is not
+    metrics = batch_metrics(log, scenario)
+    metrics["tracking_rmse"][0] = 25.0
+    warned = batch_warnings(log, metrics, scenario)
+    assert len(warned) == 4
+    for i in range(4):
+        alone = run_warnings(
+            run_log(log, i), {k: float(v[i]) for k, v in metrics.items()}, scenario
+        )
+        assert warned[i] == alone
+    assert "tracking" in [w.code for w in warned[0]]
+    assert "nees" in [w.code for w in warned[3]]
