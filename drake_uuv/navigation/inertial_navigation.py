@@ -16,7 +16,6 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
-from drake_uuv.models.tracking_laws import rotate, rotate_back
 from drake_uuv.navigation.base import NavigationSetting
 from drake_uuv.primitives import declare_random_input
 from drake_uuv.primitives.batch import batch_size_field, per_run
@@ -172,39 +171,38 @@ class InertialNavigationSystem(LeafSystem):
         if self._attitude_exact:
             value.set_value(R)
             return
-        delta = self._attitude_sigma * self._noise(context)[:, :3]
-        delta[:, 2] += self._bias(context)[:, 0]
-        value.set_value(perturbed_attitudes(R, delta))
+        R_nav = np.empty(R.shape)
+        _attitude_kernel(R, self._noise(context), self._bias(context), self._attitude_sigma, R_nav)
+        value.set_value(R_nav)
 
     def _calc_velocity_error(self, context: Context, value: AbstractValue) -> None:
         """``e_v = R_WB_nav (R_WBᵀ v_WU + b_v + n_v) − v_WU`` (B×3)."""
-        R_nav = self._attitude.Eval(context)
-        if self._attitude_exact:  # R_WB_nav = R_WB: the DVL's error alone
-            if self._velocity_exact:
-                value.set_value(np.zeros((self.batch_size, 3)))
-            else:
-                value.set_value(rotate(R_nav, self._dvl_error(context)))
+        B = self.batch_size
+        if self._attitude_exact and self._velocity_exact:
+            value.set_value(np.zeros((B, 3)))
             return
-        R = per_run(self._R_port.Eval(context), self.batch_size, 3, 3)
-        v = per_run(self._v_port.Eval(context), self.batch_size)
-        v_B = rotate_back(R, v)
-        if not self._velocity_exact:
-            v_B += self._dvl_error(context)
-        value.set_value(rotate(R_nav, v_B) - v)
-
-    def _dvl_error(self, context: Context) -> np.ndarray:
-        """``b_v + n_v`` (B×3, body frame)."""
-        return self._bias(context)[:, 1:] + self._velocity_sigma * self._noise(context)[:, 3:]
+        e_v = np.empty((B, 3))
+        _velocity_error_kernel(
+            per_run(self._R_port.Eval(context), B, 3, 3),
+            self._attitude.Eval(context),
+            per_run(self._v_port.Eval(context), B),
+            self._noise(context),
+            self._bias(context),
+            self._velocity_sigma,
+            self._attitude_exact,
+            self._velocity_exact,
+            e_v,
+        )
+        value.set_value(e_v)
 
     def _calc_position_error(self, context: Context, value: AbstractValue) -> None:
         """``e_p(k)`` (B×3): the trapezoid step from ``e_p(k−1)``, or 0 at k = 0 (per run)."""
         state = per_run(
             context.get_discrete_state(self._dead_reckoning_index).get_value(), self.batch_size
         )
-        e_v = self._velocity_error.Eval(context)
-        with np.errstate(invalid="ignore", over="ignore"):
-            step = state[:, :3] + self._half_step * (state[:, 3:6] + e_v)
-        value.set_value(np.where(state[:, 6:7] == 0.0, 0.0, step))
+        e_p = np.empty((self.batch_size, 3))
+        _trapezoid_kernel(state, self._velocity_error.Eval(context), self._half_step, e_p)
+        value.set_value(e_p)
 
     def _dead_reckon(self, context: Context, discrete_state: DiscreteValues) -> None:
         e_p, e_v = self._position_error.Eval(context), self._velocity_error.Eval(context)
@@ -225,26 +223,74 @@ class InertialNavigationSystem(LeafSystem):
         output.set_value(self._attitude.Eval(context).ravel())
 
 
+@njit(cache=True)
+def _trapezoid_kernel(
+    state: np.ndarray, e_v: np.ndarray, half_step: float, out: np.ndarray
+) -> None:
+    """Each run's ``e_p(k) = e_p(k−1) + ½ t (e_v(k−1) + e_v(k))``, or 0 where not started."""
+    for n in range(state.shape[0]):
+        for i in range(3):
+            if state[n, 6] == 0.0:
+                out[n, i] = 0.0
+            else:
+                out[n, i] = state[n, i] + half_step * (state[n, 3 + i] + e_v[n, i])
+
+
+@njit(cache=True)
+def _attitude_kernel(
+    R: np.ndarray, noise: np.ndarray, bias: np.ndarray, sigma: np.ndarray, out: np.ndarray
+) -> None:
+    """Each run's ``R_WB_nav``: roll-pitch-yaw of ``R`` plus ``σ n`` and the heading bias."""
+    for n in range(R.shape[0]):
+        roll, pitch, yaw = _roll_pitch_yaw(R[n])
+        _rotation_from_roll_pitch_yaw(
+            roll + sigma[0] * noise[n, 0],
+            pitch + sigma[1] * noise[n, 1],
+            yaw + (sigma[2] * noise[n, 2] + bias[n, 0]),
+            out[n],
+        )
+
+
+@njit(cache=True)
+def _velocity_error_kernel(
+    R: np.ndarray,
+    R_nav: np.ndarray,
+    v: np.ndarray,
+    noise: np.ndarray,
+    bias: np.ndarray,
+    sigma_v: float,
+    attitude_exact: bool,
+    velocity_exact: bool,
+    out: np.ndarray,
+) -> None:
+    """Each run's ``e_v = R_WB_nav (R_WBᵀ v + b_v + n_v) − v``; with the attitude exact
+    (``R_WB_nav = R_WB``) the DVL's error alone, ``R_WB (b_v + n_v)``."""
+    v_B = np.empty(3)
+    for n in range(R.shape[0]):
+        for i in range(3):
+            dvl = 0.0 if velocity_exact else bias[n, 1 + i] + sigma_v * noise[n, 3 + i]
+            if attitude_exact:
+                v_B[i] = dvl
+            else:
+                v_B[i] = R[n, 0, i] * v[n, 0] + R[n, 1, i] * v[n, 1] + R[n, 2, i] * v[n, 2]
+                if not velocity_exact:
+                    v_B[i] += dvl
+        for i in range(3):
+            turned = R_nav[n, i, 0] * v_B[0] + R_nav[n, i, 1] * v_B[1] + R_nav[n, i, 2] * v_B[2]
+            out[n, i] = turned if attitude_exact else turned - v[n, i]
+
+
 def perturbed_attitudes(R: np.ndarray, delta: np.ndarray) -> np.ndarray:
     """``RotationMatrix(RollPitchYaw(rpy(R) + δ))`` (B×3×3) of attitudes ``R`` (B×3×3) and
     angle increments ``δ`` (B×3, roll, pitch, yaw) [rad]: Drake's ``RollPitchYaw`` of a
     rotation matrix (from its quaternion and the matrix, robust near pitch ±90°) and its
     rotation matrix, written out as a compiled loop over runs (rounding may differ from
     Drake's in the last bits)."""
-    R = np.ascontiguousarray(R, dtype=float)
-    delta = np.ascontiguousarray(delta, dtype=float)
+    R = np.ascontiguousarray(R, dtype=float).reshape(-1, 3, 3)
+    delta = np.ascontiguousarray(delta, dtype=float).reshape(-1, 3)
     out = np.empty(R.shape)
-    _perturbed_attitude_kernel(R.reshape(-1, 3, 3), delta.reshape(-1, 3), out.reshape(-1, 3, 3))
+    _attitude_kernel(R, delta, np.zeros((len(R), 1)), np.ones(3), out)  # 1·δ + 0 = δ exactly
     return out
-
-
-@njit(cache=True)
-def _perturbed_attitude_kernel(R: np.ndarray, delta: np.ndarray, out: np.ndarray) -> None:
-    for n in range(R.shape[0]):
-        roll, pitch, yaw = _roll_pitch_yaw(R[n])
-        _rotation_from_roll_pitch_yaw(
-            roll + delta[n, 0], pitch + delta[n, 1], yaw + delta[n, 2], out[n]
-        )
 
 
 @njit(cache=True)
