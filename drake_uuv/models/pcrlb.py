@@ -188,46 +188,113 @@ def pcrlb_recursion(
     return bounds
 
 
+#: Recursions the kernel steps side by side (independent lanes the compiler may put in one
+#: SIMD register; each lane's arithmetic is its own run's, so its bits are the run's alone).
+_LANES = 4
+
+
 @njit(cache=True)
 def _pcrlb_kernel(M: np.ndarray, P0: np.ndarray, Q: np.ndarray, t: float, out: np.ndarray) -> None:
     """The recursion of :func:`pcrlb_recursion` for each of ``M``'s runs (R×N×6×6) into
     ``out``, as a covariance recursion: ``P⁻ = ½(X + Xᵀ)`` with ``X = A P Aᵀ + Q`` (``A`` the
     double integrator of step t, written out), ``J = ½(Y + Yᵀ)`` with ``Y = P⁻⁻¹ + M``,
-    ``P = J⁻¹`` (inverses by Cholesky: exactly symmetric)."""
-    predicted = np.empty((6, 6))
-    work = np.empty((6, 6))
-    inverse = np.empty((6, 6))
-    L, L_inv, d_inv = np.empty((6, 6)), np.empty((6, 6)), np.empty(6)
-    for r in range(M.shape[0]):
-        predicted[:, :] = P0
-        for k in range(M.shape[1]):
-            if k > 0:
-                _predict(out[r, k - 1], Q, t, work)
+    ``P = J⁻¹`` (inverses by Cholesky: exactly symmetric; NaN where a matrix is not
+    positive definite, and so from there on). Runs go :data:`_LANES` at a time, lane g
+    holding run ``first + g`` (the last run repeated past the end, not written)."""
+    runs, steps = M.shape[0], M.shape[1]
+    G = _LANES
+    P = np.empty((6, 6, G))
+    X = np.empty((6, 6, G))
+    S = np.empty((6, 6, G))
+    L = np.empty((6, 6, G))
+    L_inv = np.empty((6, 6, G))
+    d_inv = np.empty((6, G))
+    lanes = np.empty(G, np.int64)
+    for first in range(0, runs, G):
+        for g in range(G):
+            lanes[g] = min(first + g, runs - 1)
+        for k in range(steps):
+            if k == 0:
                 for i in range(6):
                     for j in range(6):
-                        predicted[i, j] = 0.5 * (work[i, j] + work[j, i])
-            _spd_inverse6(predicted, inverse, L, L_inv, d_inv)
+                        for g in range(G):
+                            S[i, j, g] = P0[i, j]
+            else:
+                _predict_lanes(P, Q, t, X)
+                for i in range(6):
+                    for j in range(6):
+                        for g in range(G):
+                            S[i, j, g] = 0.5 * (X[i, j, g] + X[j, i, g])
+            _inverse_lanes(S, X, L, L_inv, d_inv)
             for i in range(6):
                 for j in range(6):
-                    work[i, j] = inverse[i, j] + M[r, k, i, j]
+                    for g in range(G):
+                        S[i, j, g] = X[i, j, g] + M[lanes[g], k, i, j]
             for i in range(6):
                 for j in range(6):
-                    inverse[i, j] = 0.5 * (work[i, j] + work[j, i])
-            _spd_inverse6(inverse, out[r, k], L, L_inv, d_inv)
+                    for g in range(G):
+                        X[i, j, g] = 0.5 * (S[i, j, g] + S[j, i, g])
+            _inverse_lanes(X, P, L, L_inv, d_inv)
+            for g in range(min(G, runs - first)):
+                for i in range(6):
+                    for j in range(6):
+                        out[first + g, k, i, j] = P[i, j, g]
 
 
 @njit(cache=True)
-def _predict(P: np.ndarray, Q: np.ndarray, t: float, out: np.ndarray) -> None:
-    """``A P Aᵀ + Q`` for the double integrator ``A = [[I, tI], [0, I]]``: with ``P`` in 3×3
-    blocks ``[[P11, P12], [P21, P22]]``, ``A P Aᵀ = [[P11 + t P21 + t (P12 + t P22),
+def _predict_lanes(P: np.ndarray, Q: np.ndarray, t: float, out: np.ndarray) -> None:
+    """``A P Aᵀ + Q`` per lane for the double integrator ``A = [[I, tI], [0, I]]``: with ``P``
+    in 3×3 blocks ``[[P11, P12], [P21, P22]]``, ``A P Aᵀ = [[P11 + t P21 + t (P12 + t P22),
     P12 + t P22], [P21 + t P22, P22]]``."""
     for i in range(3):
         for j in range(3):
-            p12 = P[i, j + 3] + t * P[i + 3, j + 3]
-            out[i, j] = P[i, j] + t * P[i + 3, j] + t * p12 + Q[i, j]
-            out[i, j + 3] = p12 + Q[i, j + 3]
-            out[i + 3, j] = P[i + 3, j] + t * P[i + 3, j + 3] + Q[i + 3, j]
-            out[i + 3, j + 3] = P[i + 3, j + 3] + Q[i + 3, j + 3]
+            for g in range(_LANES):
+                p12 = P[i, j + 3, g] + t * P[i + 3, j + 3, g]
+                out[i, j, g] = P[i, j, g] + t * P[i + 3, j, g] + t * p12 + Q[i, j]
+                out[i, j + 3, g] = p12 + Q[i, j + 3]
+                out[i + 3, j, g] = P[i + 3, j, g] + t * P[i + 3, j + 3, g] + Q[i + 3, j]
+                out[i + 3, j + 3, g] = P[i + 3, j + 3, g] + Q[i + 3, j + 3]
+
+
+@njit(cache=True)
+def _inverse_lanes(
+    S: np.ndarray, out: np.ndarray, L: np.ndarray, L_inv: np.ndarray, d_inv: np.ndarray
+) -> None:
+    """``S⁻¹`` per lane of symmetric 6×6 matrices (6×6×G) by Cholesky, ``L⁻ᵀ L⁻¹`` (exactly
+    symmetric); a lane whose ``S`` is not positive definite (a pivot not > 0, or NaN) gets a
+    NaN pivot, which makes its whole inverse NaN."""
+    G = _LANES
+    for j in range(6):
+        for g in range(G):
+            d = S[j, j, g]
+            for m in range(j):
+                d -= L[j, m, g] * L[j, m, g]
+            d = np.sqrt(d) if d > 0.0 else np.nan
+            L[j, j, g] = d
+            d_inv[j, g] = 1.0 / d
+        for i in range(j + 1, 6):
+            for g in range(G):
+                v = S[i, j, g]
+                for m in range(j):
+                    v -= L[i, m, g] * L[j, m, g]
+                L[i, j, g] = v * d_inv[j, g]
+    for j in range(6):
+        for g in range(G):
+            L_inv[j, j, g] = d_inv[j, g]
+        for i in range(j + 1, 6):
+            for g in range(G):
+                v = 0.0
+                for m in range(j, i):
+                    v -= L[i, m, g] * L_inv[m, j, g]
+                L_inv[i, j, g] = v * d_inv[i, g]
+    for i in range(6):
+        for j in range(i + 1):
+            for g in range(G):
+                v = 0.0
+                for m in range(i, 6):
+                    v += L_inv[m, i, g] * L_inv[m, j, g]
+                out[i, j, g] = v
+                out[j, i, g] = v
 
 
 @njit(cache=True)
@@ -264,25 +331,6 @@ def lower_inverse6(L: np.ndarray, d_inv: np.ndarray, L_inv: np.ndarray) -> None:
             for m in range(j, i):
                 v -= L[i, m] * L_inv[m, j]
             L_inv[i, j] = v * d_inv[i]
-
-
-@njit(cache=True)
-def _spd_inverse6(
-    S: np.ndarray, out: np.ndarray, L: np.ndarray, L_inv: np.ndarray, d_inv: np.ndarray
-) -> None:
-    """``S⁻¹`` of a symmetric positive definite 6×6 ``S`` by Cholesky, ``L⁻ᵀ L⁻¹`` (exactly
-    symmetric), into ``out``; NaN where ``S`` is not numerically positive definite."""
-    if not cholesky6(S, L, d_inv):
-        out[:, :] = np.nan
-        return
-    lower_inverse6(L, d_inv, L_inv)
-    for i in range(6):
-        for j in range(i + 1):
-            v = 0.0
-            for m in range(i, 6):
-                v += L_inv[m, i] * L_inv[m, j]
-            out[i, j] = v
-            out[j, i] = v
 
 
 def pcrlb_along_trajectory(
