@@ -47,8 +47,8 @@ class InertialNavigationSystem(LeafSystem):
 
     Noise enters through random input ports only: ``navigation_noise`` is read each step;
     ``navigation_bias`` is read once, by an initialization event that latches ``σ · draw``
-    into discrete state (the builder's ``set_random_context`` puts the seed's first draw in
-    its hold before the simulator initializes), so the biases hold for the whole run.
+    into discrete state (the port then holds the run's first draw of its source, a function
+    of the run's seed), so the biases hold for the whole run.
 
     .. pydrake_system::
 
