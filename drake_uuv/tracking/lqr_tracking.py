@@ -132,8 +132,8 @@ class LqrTrackingController(LeafSystem):
         if not self._feedforward:
             return np.concatenate([r0, np.zeros((B, 3))], axis=1), np.zeros((B, 3))
         plan = reference_rotations(per_run(self._plan_port.Eval(context), B, 2, 3, 3), frame)
-        r1, r2 = rotate(plan[:, 0], q_star), rotate(plan[:, 1], q_star)
-        return reference_feedforward(r0, r1, r2, self._time_step)
+        r = rotate(plan, q_star)  # B×2×3: r(k+1), r(k+2)
+        return reference_feedforward(r0, r[:, 0], r[:, 1], self._time_step)
 
     def acceleration(self, context: Context) -> np.ndarray:
         """The applied world acceleration ``a(k)`` (B×3), after the limit."""
