@@ -156,7 +156,9 @@ def _nees_kernel(e: np.ndarray, P: np.ndarray, nees: np.ndarray, undecided: np.n
         nees[n] = value
 
 
-def run_information(log: dict[str, np.ndarray], scenario: Scenario) -> np.ndarray:
+def run_information(
+    log: dict[str, np.ndarray], scenario: Scenario, out: np.ndarray | None = None
+) -> np.ndarray:
     """Fisher information ``M(k)`` (N×6×6) of the raw ranges, all f samples, on this run's true
     trajectory; a sonar without a return (``sonar_status`` not VALID) contributes nothing.
 
@@ -173,7 +175,20 @@ def run_information(log: dict[str, np.ndarray], scenario: Scenario) -> np.ndarra
         np.asarray(scenario.sonar.noise_variances, dtype=float),
         scenario.sonar.samples_per_step,
         available,
+        out,
     )
+
+
+@njit(cache=True)
+def _baseline_information_kernel(q_s: np.ndarray, weight: np.ndarray, out: np.ndarray) -> None:
+    """``w q_s q_sᵀ`` in each step's position block, zero elsewhere: the information of the
+    paper's ``Y`` (``C = [q_sᵀ, 0]``, weight ``1/Γ`` where both ranges arrived)."""
+    for n in range(q_s.shape[0]):
+        out[n] = 0.0
+        for i in range(3):
+            wq = weight[n] * q_s[n, i]
+            for j in range(3):
+                out[n, i, j] = wq * q_s[n, j]
 
 
 def bound_covariances(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, np.ndarray]:
@@ -206,11 +221,15 @@ def bound_covariances(log: dict[str, np.ndarray], scenario: Scenario) -> dict[st
     # The KF's Riccati recursion in information form (C = [q_sᵀ, 0], Y needs both ranges),
     # equal to its Joseph form (pcrlb.kf_riccati_covariance) to rounding, run in one batch
     # with the PCRLB: half the time of two recursions.
-    information = np.zeros((2, *q_s.shape[:-1], 6, 6))
-    information[0] = run_information(log, scenario)
+    information = np.empty((2, *q_s.shape[:-1], 6, 6))
+    run_information(log, scenario, out=information[0])
     both = np.all(log["sonar_status"] == VALID, axis=-1) if "sonar_status" in log else True
-    weight = np.where(both, 1.0 / gamma, 0.0)
-    information[1, ..., :3, :3] = weight[..., None, None] * q_s[..., :, None] * q_s[..., None, :]
+    weight = np.broadcast_to(np.where(both, 1.0 / gamma, 0.0), q_s.shape[:-1])
+    _baseline_information_kernel(
+        np.ascontiguousarray(q_s, dtype=float).reshape(-1, 3),
+        np.ascontiguousarray(weight).reshape(-1),
+        information[1].reshape(-1, 6, 6),
+    )
     pcrlb, riccati = pcrlb_recursion(information, P0, W, scenario.time_step)
     if not bound_errors_on(scenario):
         return {"pcrlb": pcrlb, "kf_riccati": riccati}
@@ -503,11 +522,8 @@ def _attitude_metrics_runs(log: dict[str, np.ndarray], scenario: Scenario) -> di
     angles = np.arctan2(sin, cos)
     window = scenario.analysis.pe_window
     if window <= steps:
-        q_s = log["b_W"]
-        outer = q_s[..., :, np.newaxis] * q_s[..., np.newaxis, :]
-        cumulative = np.concatenate([np.zeros((runs, 1, 3, 3)), np.cumsum(outer, axis=1)], axis=1)
-        low = smallest_eigenvalues(cumulative[:, window:] - cumulative[:, :-window])
-        excitation = np.min(low, axis=-1)
+        excitation = np.empty(runs)
+        _excitation_kernel(np.ascontiguousarray(log["b_W"], dtype=float), window, excitation)
     else:
         excitation = nan
     t = scenario.tracking
@@ -538,33 +554,65 @@ def smallest_eigenvalues(S: np.ndarray) -> np.ndarray:
 def _smallest_eigenvalues_kernel(S: np.ndarray, out: np.ndarray) -> None:
     a = np.empty((3, 3))
     for n in range(S.shape[0]):
-        for i in range(3):
-            for j in range(3):
-                a[i, j] = S[n, i, j]
-        for _ in range(60):
-            rotated = False
-            for p, q in ((0, 1), (0, 2), (1, 2)):
-                apq = a[p, q]
-                if not abs(apq) > 1e-18 * (abs(a[p, p]) + abs(a[q, q])):
-                    continue
-                rotated = True
-                theta = (a[q, q] - a[p, p]) / (2.0 * apq)
-                t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
-                if theta < 0.0:
-                    t = -t
-                c = 1.0 / math.sqrt(t * t + 1.0)
-                s = t * c
-                tau = s / (1.0 + c)
-                a[p, p] -= t * apq
-                a[q, q] += t * apq
-                a[p, q] = a[q, p] = 0.0
-                r = 3 - p - q
-                g, h = a[r, p], a[r, q]
-                a[r, p] = a[p, r] = g - s * (h + g * tau)
-                a[r, q] = a[q, r] = h + s * (g - h * tau)
-            if not rotated:
+        a[:, :] = S[n]
+        out[n] = _smallest_eigenvalue3(a)
+
+
+@njit(cache=True)
+def _excitation_kernel(q_s: np.ndarray, window: int, out: np.ndarray) -> None:
+    """Each run's smallest eigenvalue of ``Σ q_s q_sᵀ`` over every window of ``window``
+    steps, the minimum over the run (NaN if any is): window sums as differences of the
+    running sums (``C(k + w) − C(k)``, ``C(k + 1) = C(k) + q_s q_sᵀ``)."""
+    runs, steps = q_s.shape[0], q_s.shape[1]
+    cumulative = np.empty((steps + 1, 3, 3))
+    a = np.empty((3, 3))
+    for r in range(runs):
+        cumulative[0] = 0.0
+        for k in range(steps):
+            for i in range(3):
+                for j in range(3):
+                    cumulative[k + 1, i, j] = cumulative[k, i, j] + q_s[r, k, i] * q_s[r, k, j]
+        lowest = np.inf
+        for k in range(steps - window + 1):
+            for i in range(3):
+                for j in range(3):
+                    a[i, j] = cumulative[k + window, i, j] - cumulative[k, i, j]
+            value = _smallest_eigenvalue3(a)
+            if not value >= lowest:  # smaller, or NaN (which stays)
+                lowest = value
+            if lowest != lowest:
                 break
-        out[n] = min(a[0, 0], min(a[1, 1], a[2, 2]))
+        out[r] = lowest
+
+
+@njit(cache=True)
+def _smallest_eigenvalue3(a: np.ndarray) -> float:
+    """The smallest eigenvalue of the symmetric 3×3 ``a`` (overwritten) by cyclic Jacobi
+    rotations until no off-diagonal entry counts beside its diagonal."""
+    for _ in range(60):
+        rotated = False
+        for p, q in ((0, 1), (0, 2), (1, 2)):
+            apq = a[p, q]
+            if not abs(apq) > 1e-18 * (abs(a[p, p]) + abs(a[q, q])):
+                continue
+            rotated = True
+            theta = (a[q, q] - a[p, p]) / (2.0 * apq)
+            t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
+            if theta < 0.0:
+                t = -t
+            c = 1.0 / math.sqrt(t * t + 1.0)
+            s = t * c
+            tau = s / (1.0 + c)
+            a[p, p] -= t * apq
+            a[q, q] += t * apq
+            a[p, q] = a[q, p] = 0.0
+            r = 3 - p - q
+            g, h = a[r, p], a[r, q]
+            a[r, p] = a[p, r] = g - s * (h + g * tau)
+            a[r, q] = a[q, r] = h + s * (g - h * tau)
+        if not rotated:
+            break
+    return min(a[0, 0], min(a[1, 1], a[2, 2]))
 
 
 def model_acceleration_rmse(log: dict[str, np.ndarray], scenario: Scenario) -> float:

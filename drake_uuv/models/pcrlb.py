@@ -110,6 +110,7 @@ def measurement_information(
     eta: np.ndarray,
     samples_per_step: int,
     available: np.ndarray | None = None,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Fisher information ``M(k) = H(x_k)ᵀ R⁻¹ H(x_k)`` of the raw ranges at each step.
 
@@ -119,6 +120,7 @@ def measurement_information(
     Returns (N×6×6); only the position block is non-zero: ``Σ_i (f/η_i) u_i u_iᵀ`` over the
     available sonars, with ``u_i`` the unit line-of-sight vectors. Leading axes (runs:
     ``B×N×3`` → ``B×N×6×6``) go element by element, each run the same bits as alone.
+    ``out`` (optional, C-contiguous, the result's shape) receives the result.
     """
     q = _as_trajectories(q_true, "q_true", 3)
     qs = _as_trajectories(q_s, "q_s", 3)
@@ -127,7 +129,9 @@ def measurement_information(
     mask = _availability(available, q.shape[:-1])
     eta = np.asarray(eta, dtype=float).reshape(2)
     weights = float(samples_per_step) / eta
-    M = np.zeros((*q.shape[:-1], 6, 6))
+    M = np.empty((*q.shape[:-1], 6, 6)) if out is None else out
+    if M.shape != (*q.shape[:-1], 6, 6) or not M.flags.c_contiguous:
+        raise ValueError(f"out must be C-contiguous of shape {(*q.shape[:-1], 6, 6)}")
     _information_kernel(
         np.ascontiguousarray(q).reshape(-1, 3), np.ascontiguousarray(qs).reshape(-1, 3),
         np.ascontiguousarray(mask).reshape(-1, 2), weights, M.reshape(-1, 6, 6),
@@ -139,11 +143,12 @@ def measurement_information(
 def _information_kernel(
     q: np.ndarray, q_s: np.ndarray, mask: np.ndarray, weights: np.ndarray, M: np.ndarray
 ) -> None:
-    """``Σ_i w_i u_i u_iᵀ`` into each step's position block (``M`` zero on entry), with
+    """``Σ_i w_i u_i u_iᵀ`` into each step's position block (the rest of ``M`` zero), with
     ``u_i = r_i / max(|r_i|, 1e-9)``, ``r_i = q ± ½ q_s``, ``w_i`` the sonar's weight where it
     returned (numpy's order of operations, step by step)."""
     u = np.empty(3)
     for n in range(q.shape[0]):
+        M[n] = 0.0
         for i in range(2):
             sign = 0.5 if i == 0 else -0.5
             squared = 0.0
