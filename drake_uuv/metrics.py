@@ -239,11 +239,27 @@ def bound_covariances(log: dict[str, np.ndarray], scenario: Scenario) -> dict[st
         bound, floor = (
             np.stack(parts)
             for parts in zip(
-                *(extended_bound(run_log(log, i), scenario) for i in range(len(q))),
+                *(_extended_bound_of_run(run_log(log, i), scenario) for i in range(len(q))),
                 strict=True,
             )
         )
     return {"pcrlb": bound + floor, "kf_riccati": riccati, "pcrlb_floor": floor}
+
+
+def _extended_bound_of_run(
+    log: dict[str, np.ndarray], scenario: Scenario
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`extended_bound` of one run of a batch; NaN for a failed run (a non-finite true
+    state or baseline in its log) whose pings it cannot read, so that run does not stop the
+    batch's metrics (a sound run's error still raises)."""
+    try:
+        return extended_bound(log, scenario)
+    except (ValueError, np.linalg.LinAlgError):
+        state = ("p_WU", "v_WU", "p_WT", "v_WT", "R_WB", "b_W")
+        if all(np.isfinite(log[name]).all() for name in state):
+            raise
+        nan = np.full((len(log["p_WU"]), 6, 6), np.nan)
+        return nan, nan
 
 
 def run_log(log: dict[str, np.ndarray], run: int) -> dict[str, np.ndarray]:
@@ -471,10 +487,10 @@ def run_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, flo
 
 
 def _chunk_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, np.ndarray]:
-    """:func:`batch_metrics` of a few runs at once."""
-    e = errors(log, scenario)
+    """:func:`batch_metrics` of a few runs at once (a failed run's inf and NaN go quietly)."""
     start = scenario.steady_state_start
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        e = errors(log, scenario)
         speed = np.linalg.norm(e["relative_velocity"][:, start:], axis=-1)
         acceleration = np.linalg.norm(log["u1_W"][:, start:], axis=-1)
         return {

@@ -18,6 +18,7 @@ from drake_uuv.models.measurement import DROPPED, VALID
 from drake_uuv.models.so3 import exp_so3_runs
 from drake_uuv.scenario import Scenario, load_scenario
 from drake_uuv.simulation import ClosedLoopSimulation
+from tests.closed_loop.test_metrics import _synthetic_log
 
 STEPS, START = 50, 20
 
@@ -191,3 +192,47 @@ def test_the_warnings_of_a_batch_are_each_runs() -> None:
         assert warned[i] == alone
     assert "tracking" in [w.code for w in warned[0]]
     assert "nees" in [w.code for w in warned[3]]
+
+
+def test_a_run_of_infs_and_nans_warns_of_nothing_and_leaves_the_others() -> None:
+    """A run whose log overflowed (inf, −inf, NaN mixed) gives non-finite metrics without a
+    floating-point warning, and the other runs' metrics are unchanged."""
+    scenario = _scenario("navigation=!InertialNavigation")
+    log = random_log(np.random.default_rng(9), 3)
+    clean = batch_metrics(log, scenario)
+    for name, value in log.items():
+        if name not in ("k", "time", "sonar_status"):
+            value[2, 10:] = np.where(
+                np.arange(value[2, 10:].size).reshape(value[2, 10:].shape) % 2, np.inf, -np.inf
+            )
+    with np.errstate(all="raise"):
+        broken = batch_metrics(log, scenario)
+    for name, value in clean.items():
+        assert np.array_equal(broken[name][:2], value[:2], equal_nan=True), name
+    assert not np.isfinite(broken["position_rmse"][2])
+
+
+def test_a_failed_run_whose_pings_cannot_be_read_leaves_the_others() -> None:
+    """With sonar timing the bound reads each run's pings; a failed run's NaN ping times and
+    state give it NaN bounds while the others keep their own (the same as alone); a sound run
+    whose pings are wrong still raises."""
+    scenario = _scenario("sonar.ping_offsets=[0.1, 0.3]", "sonar.latency=0.6")
+    runs = [_synthetic_log(scenario, seed) for seed in (1, 2)]
+    rng = np.random.default_rng(10)
+    for run in runs:
+        run["x_TU_hat"] = np.concatenate(
+            [run["p_WU"] - run["p_WT"], run["v_WU"] - run["v_WT"]], axis=1
+        ) + 0.1 * rng.normal(size=(STEPS, 6))
+        run["P_TU"] = np.tile(0.01 * np.eye(6), (STEPS, 1, 1))
+    log = {name: np.stack([run[name] for run in runs]) for name in runs[0]}
+    log["k"], log["time"] = np.arange(STEPS), 0.5 * np.arange(STEPS)
+    log["ping_time"][1, 30:] = np.nan
+    log["p_WU"][1, 30:] = np.nan
+    batch = batch_metrics(log, scenario)
+    alone = run_metrics(run_log(log, 0), scenario)
+    assert all(np.array_equal(batch[k][0], v) for k, v in alone.items())
+    assert np.isnan(batch["pcrlb_position_rmse"][1])
+    with pytest.raises(ValueError, match="ping_time"):
+        wrong = run_log(log, 0)
+        wrong["ping_time"] = wrong["ping_time"] + 5.0
+        batch_metrics({k: v if k in ("k", "time") else v[None] for k, v in wrong.items()}, scenario)
