@@ -15,7 +15,7 @@ from pydrake.systems.framework import Context, System
 from drake_uuv.diagnostics import RunWarning, run_warnings
 from drake_uuv.diagram import UuvDiagram, make_uuv_diagram
 from drake_uuv.io import write_json_atomic, write_npz_atomic
-from drake_uuv.metrics import metric_signals, run_metrics
+from drake_uuv.metrics import batch_metrics, metric_signals
 from drake_uuv.models.tracking_laws import closed_loop_eigenvalues
 from drake_uuv.monitor import EstimatorHealthMonitor, SimulationFailure
 from drake_uuv.scenario import Scenario
@@ -124,7 +124,7 @@ class ClosedLoopSimulation:
     signal of ``log.npz``; ``log="metrics"`` only those the metrics, the warnings and a
     study read (:func:`~drake_uuv.metrics.metric_signals`): the same metrics, with the outputs
     nobody else reads never computed. A plant with continuous state sets up the
-    integrator (its ``configure_simulator``). Besides :func:`~drake_uuv.metrics.run_metrics`,
+    integrator (its ``configure_simulator``). Besides :func:`~drake_uuv.metrics.batch_metrics`,
     a run's metrics hold ``tracking_spectral_radius``: the largest |eigenvalue| of the
     tracking law's closed loop ``A − B K`` on the relative double integrator (< 1: the error
     dynamics are stable; the paper's law has 1, its undamped velocity mode), the same for
@@ -243,7 +243,7 @@ class ClosedLoopSimulation:
             ) from e
         log = log_from_loggers(self.built, context, scenario.steps)
         failures = list(self.monitor.failures)
-        metrics = _batch_metrics(log, scenario, seeds, failures)
+        metrics = _batch_metrics(log, scenario, failures)
         metrics.update(
             tracking_spectral_radius=np.full(len(seeds), self.tracking_spectral_radius),
             steps=np.full(len(seeds), scenario.steps),
@@ -253,23 +253,16 @@ class ClosedLoopSimulation:
 
 
 def _batch_metrics(
-    log: dict[str, np.ndarray],
-    scenario: Scenario,
-    seeds: np.ndarray,
-    failures: list[str | None],
+    log: dict[str, np.ndarray], scenario: Scenario, failures: list[str | None]
 ) -> dict[str, np.ndarray]:
-    """Each run's metrics as (B,) arrays, NaN for a failed run."""
-    names: list[str] = []
-    rows: list[dict[str, float]] = []
-    for i, seed in enumerate(seeds):
-        if failures[i] is not None:
-            rows.append({})
-            continue
-        run_log = {n: v if n in ("k", "time") else v[i] for n, v in log.items()}
-        row = run_metrics(run_log, dataclasses.replace(scenario, random_seed=int(seed)))
-        names = names or list(row)
-        rows.append(row)
-    return {name: np.array([row.get(name, math.nan) for row in rows]) for name in names}
+    """Each run's metrics as (B,) arrays (:func:`~drake_uuv.metrics.batch_metrics`), NaN for
+    a run the monitor stopped (what its log holds after the failure means nothing)."""
+    metrics = batch_metrics(log, scenario)
+    failed = np.array([f is not None for f in failures], dtype=bool)
+    if failed.any():
+        for value in metrics.values():
+            value[failed] = math.nan
+    return metrics
 
 
 def simulate(scenario: Scenario) -> SimulationResult:

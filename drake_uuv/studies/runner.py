@@ -15,7 +15,6 @@ associative, so the total, and the bound, are the same whatever the chunking, th
 the number of workers.
 """
 
-import dataclasses
 import json
 import math
 import threading
@@ -25,9 +24,8 @@ from typing import Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from drake_uuv.diagnostics import run_warnings
+from drake_uuv.diagnostics import batch_warnings
 from drake_uuv.metrics import errors, metric_signals, run_information
-from drake_uuv.monitor import SimulationFailure
 from drake_uuv.scenario import Scenario, scenario_as_dict
 from drake_uuv.signals import SIGNAL_BY_NAME
 from drake_uuv.simulation import ClosedLoopSimulation
@@ -111,101 +109,102 @@ def run_seeds(scenario: Scenario, seeds: Sequence[int]) -> dict[str, Any]:
     # One BLAS thread per worker: a run's matrices are small (6×6, at most 6×N particles),
     # and two workers each spawning a thread per core slowed a particle filter 30-fold.
     blas = threadpool_limits(limits=1, user_api="blas")
-    rows: list[dict[str, float]] = []
-    norms = []
-    exponent = information_exponent(scenario)
-    information: np.ndarray | None = np.zeros((scenario.steps, 3, 3), dtype=np.int64)
-    size = max_batch_size(scenario)
     seeds = [int(seed) for seed in seeds]
+    size = max_batch_size(scenario)
+    parts = []
     with blas, np.errstate(all="ignore"):
         for first in range(0, len(seeds), size):
-            batch = _run_batch(scenario, seeds[first : first + size])
-            for result in batch:
-                if result is None:  # a broken estimator: a failed (and diverged) run
-                    rows.append({"failed": 1.0})
-                    norms.append(np.full((len(NORMS), scenario.steps), np.nan, dtype=np.float32))
-                    information = None
-                    continue
-                log, metrics, warnings = result
-                run_norms, M = _run_summary(log, scenario)
-                metrics["max_tracking_error"] = float(
-                    np.max(run_norms[2, scenario.steady_state_start :])
-                )
-                metrics["final_tracking_error"] = float(run_norms[2, -1])
-                metrics["failed"] = 0.0
-                metrics["warnings"] = float(warnings)
-                rows.append(metrics)
-                norms.append(run_norms.astype(np.float32))
-                if information is not None and np.all(np.isfinite(M)):
-                    information += np.rint(np.ldexp(M, exponent)).astype(np.int64)
-                else:
-                    information = None
+            parts.append(_run_batch(scenario, seeds[first : first + size]))
+    rows = [row for part in parts for row in part[0]]
     names = canonical_metric_names([list(row) for row in rows])
+    information = None
+    if all(part[2] is not None for part in parts):
+        information = sum(part[2] for part in parts)
     return {
         "seeds": np.asarray(seeds, dtype=np.int64),
         "metric_names": names,
         "metrics": np.asarray([[row.get(n, math.nan) for n in names] for row in rows]),
-        "norms": np.asarray(norms, dtype=np.float32),
+        "norms": np.concatenate([part[1] for part in parts]).astype(np.float32),
         "information_sum": information,
     }
 
 
 def _run_batch(
     scenario: Scenario, seeds: list[int]
-) -> list[tuple[dict[str, np.ndarray], dict[str, float], int] | None]:
-    """Each seed's run: its log, its metrics and its number of warnings (None: failed).
+) -> tuple[list[dict[str, float]], np.ndarray, np.ndarray | None]:
+    """The seeds' metric rows, error norms (B × :data:`NORMS` × steps) and information sum
+    (None if a run failed or its information is not finite).
 
-    The seeds run as one batch; should a system raise inside it (not the monitor's
-    finding), they run again one by one, each as it would alone, so the error is the
-    failing run's and the others still count."""
+    The seeds run as one batch; should a system raise inside it (not the monitor's finding),
+    they run again one by one, each as it would alone, so that the error is the failing
+    run's own, raised naming its seed."""
     try:
         batch = cached_simulation(scenario, len(seeds)).run_batch(seeds)
     except Exception:
-        if len(seeds) == 1:
-            return [_run_alone(scenario, seeds[0])]
-        return [_run_alone(scenario, seed) for seed in seeds]
-    results = []
-    for i, seed in enumerate(seeds):
-        if batch.failures[i] is not None:
-            results.append(None)
-            continue
-        metrics = {
-            key: float(value[i])
-            for key, value in batch.metrics.items()
-            if key not in _DROPPED_METRICS
-        }
-        log = batch.run_log(i)
-        run_scenario = dataclasses.replace(scenario, random_seed=seed)
-        warnings = run_warnings(log, {**metrics, "seed": seed}, run_scenario)
-        results.append((log, metrics, len(warnings)))
-    return results
+        batch = None
+    if batch is None:
+        alone = [_run_alone(scenario, seed) for seed in seeds]
+        parts = [_summary(*result, scenario) for result in alone]
+        rows = [row for part in parts for row in part[0]]
+        information = None
+        if all(part[2] is not None for part in parts):
+            information = sum(part[2] for part in parts)
+        return rows, np.concatenate([part[1] for part in parts]), information
+    return _summary(batch.log, batch.metrics, batch.failures, scenario)
 
 
 def _run_alone(
     scenario: Scenario, seed: int
-) -> tuple[dict[str, np.ndarray], dict[str, float], int] | None:
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], list[str | None]]:
+    """Seed ``seed`` alone, as a batch of one (its log, metrics and failure)."""
     try:
-        result = cached_simulation(scenario, 1).run(seed)
-    except SimulationFailure:
-        return None
+        batch = cached_simulation(scenario, 1).run_batch([seed])
     except Exception as e:
         raise RuntimeError(f"run with seed {seed} failed: {e}") from e
-    metrics = {k: float(v) for k, v in result.metrics.items() if k not in _DROPPED_METRICS}
-    return result.log, metrics, len(result.warnings)
+    return batch.log, batch.metrics, batch.failures
 
 
-def _run_summary(log: dict[str, np.ndarray], scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
-    """A run's error norms (:data:`NORMS` × steps) and its information's position block."""
+def _summary(
+    log: dict[str, np.ndarray],
+    metrics: dict[str, np.ndarray],
+    failures: list[str | None],
+    scenario: Scenario,
+) -> tuple[list[dict[str, float]], np.ndarray, np.ndarray | None]:
+    """What a study keeps of a batch (see :func:`_run_batch`), computed for all its runs at
+    once."""
+    failed = np.array([f is not None for f in failures], dtype=bool)
     e = errors(log, scenario)
-    run_norms = np.stack(
+    tracking = np.linalg.norm(e["tracking"], axis=-1)
+    norms = np.stack(
         [
-            np.linalg.norm(e["position"], axis=1),
-            np.linalg.norm(e["velocity"], axis=1),
-            np.linalg.norm(e["tracking"], axis=1),
+            np.linalg.norm(e["position"], axis=-1),
+            np.linalg.norm(e["velocity"], axis=-1),
+            tracking,
             e["nees"],
-        ]
+        ],
+        axis=1,
     )
-    return run_norms, run_information(log, scenario)[:, :3, :3]
+    norms[failed] = np.nan
+    warnings = batch_warnings(log, metrics, scenario)
+    start = scenario.steady_state_start
+    rows = []
+    for i in range(len(failures)):
+        if failed[i]:  # a broken estimator: a failed (and diverged) run
+            rows.append({"failed": 1.0})
+            continue
+        row = {k: float(v[i]) for k, v in metrics.items() if k not in _DROPPED_METRICS}
+        row["max_tracking_error"] = float(np.max(tracking[i, start:]))
+        row["final_tracking_error"] = float(tracking[i, -1])
+        row["failed"] = 0.0
+        row["warnings"] = float(len(warnings[i]))
+        rows.append(row)
+    information = None
+    if not failed.any():
+        M = run_information(log, scenario)[..., :3, :3]
+        if np.all(np.isfinite(M)):
+            exponent = information_exponent(scenario)
+            information = np.rint(np.ldexp(M, exponent)).astype(np.int64).sum(axis=0)
+    return rows, norms, information
 
 
 def _state_bytes_per_run(scenario: Scenario) -> int:

@@ -68,7 +68,7 @@ class _NeedsSomethingElse(_NoAttitude):
 
 
 def test_a_plant_missing_a_contract_output_is_refused(paper, monkeypatch) -> None:
-    monkeypatch.setitem(PLANTS, KinematicUuv, lambda config, *, setting: _NoAttitude())
+    monkeypatch.setitem(PLANTS, KinematicUuv, lambda config, *, setting, batch_size: _NoAttitude())
     with pytest.raises(ValueError, match=r"^uuv \(!KinematicUuv\): has no output port 'R_WB'"):
         make_uuv_diagram(paper)
     with pytest.raises(ValueError, match=r"^uuv \(given _NoAttitude\): has no output port 'R_WB'"):
