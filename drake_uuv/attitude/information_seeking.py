@@ -110,20 +110,13 @@ class InformationSeekingAttitude(LeafSystem):
         self._history_index = self.DeclareDiscreteState(B * (3 * self._history + 1))
         self._previous_index = self.DeclareDiscreteState(B * 10)
         self._handed_over_index = self.DeclareDiscreteState(B)
-        self._step = self.DeclareCacheEntry(
-            "plan of step k",
-            ValueProducer(allocate=AbstractValue.Make(object()).Clone, calc=self._calc_step),
+        self._plans = self.DeclareCacheEntry(
+            "plans of steps k and k+1",
+            ValueProducer(allocate=AbstractValue.Make(object()).Clone, calc=self._calc_plans),
             {self.all_input_ports_ticket(), self.xd_ticket()},
         )
-        self._next_step = self.DeclareCacheEntry(
-            "plan of step k+1",
-            ValueProducer(allocate=AbstractValue.Make(object()).Clone, calc=self._calc_next),
-            {self._step.ticket(), self.all_input_ports_ticket(), self.xd_ticket()},
-        )
-        self.DeclareVectorOutputPort("u2_W", 3 * B, self._calc_rate, {self._step.ticket()})
-        self.DeclareVectorOutputPort(
-            "R_WB_plan", 18 * B, self._calc_plan, {self._step.ticket(), self._next_step.ticket()}
-        )
+        self.DeclareVectorOutputPort("u2_W", 3 * B, self._calc_rate, {self._plans.ticket()})
+        self.DeclareVectorOutputPort("R_WB_plan", 18 * B, self._calc_plan, {self._plans.ticket()})
         self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
 
     @property
@@ -157,42 +150,29 @@ class InformationSeekingAttitude(LeafSystem):
         b = self._planner.baseline_B
         return R_WB[:, :, 0] * b[0] + R_WB[:, :, 1] * b[1] + R_WB[:, :, 2] * b[2]
 
-    def _calc_step(self, context: Context, value: AbstractValue) -> None:
+    def plans(self, context: Context) -> tuple[PlanSteps, PlanSteps]:
+        """Each run's plan of step k (the command) and of step k+1 (the plan's ``R(k+2)``)."""
+        return self._plans.Eval(context)
+
+    def _calc_plans(self, context: Context, value: AbstractValue) -> None:
         R_WB, x_hat, P = self._inputs(context)
         history, filled, R_previous, has_previous = self._stored(context)
         linear = self._linear_start(context, P)
         value.set_value(
-            self._planner.plan_runs(
+            self._planner.plan_pair_runs(
                 x_hat, P, R_WB, history, filled, R_previous, has_previous, linear
             )
         )
 
-    def _calc_next(self, context: Context, value: AbstractValue) -> None:
-        step: PlanSteps = self._step.Eval(context)
-        R_WB, x_hat, P = self._inputs(context)
-        history, filled, _, _ = self._stored(context)
-        # The history after this step's update: q_s(k) appended.
-        history = np.concatenate([history[:, 1:], self._baselines(R_WB)[:, np.newaxis]], axis=1)
-        filled = np.minimum(filled + 1.0, self._history)
-        if self._planner.position_prediction == "coast":
-            x_hat = np.concatenate([x_hat[:, :3] + self._time_step * x_hat[:, 3:], x_hat[:, 3:]], 1)
-        linear = self._linear_start(context, step.P_next) * self._linear_start(context, P)
-        known = np.ones(self.batch_size)
-        value.set_value(
-            self._planner.plan_runs(
-                x_hat, step.P_next, step.R_next, history, filled, R_WB, known, linear
-            )
-        )
-
     def _calc_rate(self, context: Context, output: BasicVector) -> None:
-        step: PlanSteps = self._step.Eval(context)
+        step = self.plans(context)[0]
         output.set_value((step.rotation_vector / self._time_step).ravel())
 
     def _calc_plan(self, context: Context, output: BasicVector) -> None:
         B = self.batch_size
-        R_next = self._step.Eval(context).R_next.reshape(B, 9)
-        R_after = self._next_step.Eval(context).R_next.reshape(B, 9)
-        output.set_value(np.concatenate([R_next, R_after], axis=1).ravel())
+        step, following = self.plans(context)
+        plan = np.concatenate([step.R_next.reshape(B, 9), following.R_next.reshape(B, 9)], 1)
+        output.set_value(plan.ravel())
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         B = self.batch_size

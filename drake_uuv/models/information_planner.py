@@ -268,6 +268,7 @@ class InformationSeekingPlanner:
                 self.scored_horizon,
                 self.pe_window - self.pe_lead,  # steps of the trailing planning window
                 0 if reference else 1,
+                0 if self.linear_start_position_variance is None else 1,
             ],
             dtype=np.int64,
         )
@@ -282,6 +283,7 @@ class InformationSeekingPlanner:
                 self.excitation_floor,
                 math.inf if limit is None or self.q_star is None else float(limit),
                 1e-3 * self.baseline_norm**2,  # ε of the least-excited direction's metric
+                self.linear_start_position_variance or 0.0,
             ]
         )
         self._q_star = np.zeros(3) if self.q_star is None else self.q_star.copy()
@@ -436,9 +438,45 @@ class InformationSeekingPlanner:
         own candidates, floor, limit and fallbacks): run i's step is the same, bit for bit,
         whatever the batch.
         """
+        return self._plan(
+            x_hat, P, R_WB, history, filled, R_previous, has_previous, linear_start, False
+        )[0]
+
+    def plan_pair_runs(
+        self,
+        x_hat: np.ndarray,
+        P: np.ndarray,
+        R_WB: np.ndarray,
+        history: np.ndarray,
+        filled: np.ndarray,
+        R_previous: np.ndarray,
+        has_previous: np.ndarray,
+        linear_start: np.ndarray,
+    ) -> tuple[PlanSteps, PlanSteps]:
+        """:meth:`plan_runs` for step k, and the plan of step k+1 that follows it: the planner
+        once more from each run's ``R(k+1)`` and its ``P(k+1|k+1)``, the history with
+        ``q_s(k)`` appended, ``R(k)`` as ``R(k−1)``, ``x̂`` held (coasted with
+        ``position_prediction="coast"``) and the linear start until ``P(k+1|k+1)`` hands over.
+        """
+        return self._plan(
+            x_hat, P, R_WB, history, filled, R_previous, has_previous, linear_start, True
+        )
+
+    def _plan(
+        self,
+        x_hat: np.ndarray,
+        P: np.ndarray,
+        R_WB: np.ndarray,
+        history: np.ndarray,
+        filled: np.ndarray,
+        R_previous: np.ndarray,
+        has_previous: np.ndarray,
+        linear_start: np.ndarray,
+        both: bool,
+    ) -> tuple[PlanSteps, ...]:
         R_WB = _matrices(R_WB)
         runs = len(R_WB)
-        steps = _plan_kernel(
+        rotation, R_next, baseline, P_next, stats = _plan_kernel(
             self._options,
             self._parameters,
             self.baseline_B,
@@ -453,9 +491,12 @@ class InformationSeekingPlanner:
             _matrices(R_previous),
             _vectors(has_previous, 1).reshape(runs),
             _vectors(linear_start, 1).reshape(runs),
+            both,
         )
-        rotation, R_next, baseline, P_next, stats = steps
-        return PlanSteps(rotation, R_next, baseline, P_next, stats[:, 0], stats[:, 1], stats[:, 2])
+        return tuple(
+            PlanSteps(rotation[s], R_next[s], baseline[s], P_next[s], *stats[s].T)
+            for s in range(len(rotation))
+        )
 
 
 def _matrices(M: np.ndarray, n: int = 3) -> np.ndarray:
@@ -477,7 +518,8 @@ def _vectors(v: np.ndarray, n: int) -> np.ndarray:
 
 # Integer options (``_options``) and float parameters (``_parameters``) by position.
 _MEASUREMENT, _CRITERION, _BLOCK, _PREDICTION, _LAG, _SCORED, _WINDOW, _CAP = range(8)
-_T, _NORM, _ETA, _ETA_F, _FLOOR, _MAX_REFERENCE, _EPSILON = 0, 1, 2, 4, 6, 7, 8
+_THRESHOLD_SET = 8
+_T, _NORM, _ETA, _ETA_F, _FLOOR, _MAX_REFERENCE, _EPSILON, _THRESHOLD = 0, 1, 2, 4, 6, 7, 8, 9
 _RANGE_DIFFERENCE, _RANGES = 0, 1
 _D_OPTIMAL, _A_OPTIMAL, _E_OPTIMAL = 0, 1, 2
 _HOLD, _COAST, _REFERENCE = 0, 1, 2
@@ -486,7 +528,7 @@ _TIE = 1e-10  # relative difference of two objectives below which they tie
 _MIN_RANGE = MIN_RANGE
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _rotate(p0, p1, p2, v0, v1, v2):  # pragma: no cover - compiled
     """``Exp(φ) v`` (Rodrigues, as ``attitude_candidates.rotate_vectors``)."""
     angle = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
@@ -502,7 +544,7 @@ def _rotate(p0, p1, p2, v0, v1, v2):  # pragma: no cover - compiled
     )
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _symmetric_eigen_3(a00, a01, a02, a11, a12, a22):  # pragma: no cover - compiled
     """Smallest and largest eigenvalue of a symmetric 3×3 (closed form, Smith 1961)."""
     p1 = a01 * a01 + a02 * a02 + a12 * a12
@@ -557,7 +599,7 @@ def _largest_eigenvalue(M, n, work):  # pragma: no cover - compiled
     return largest
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _criterion(P, criterion, n, work):  # pragma: no cover - compiled
     """The criterion of the leading n×n block of a covariance (higher is better)."""
     if criterion == _A_OPTIMAL:
@@ -590,7 +632,7 @@ def _criterion(P, criterion, n, work):  # pragma: no cover - compiled
     return -log_det
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _predict(P, t, Q, AP, out):  # pragma: no cover - compiled
     """``A P Aᵀ + Q`` for the double integrator ``A = [[I, tI], [0, I]]``, written out."""
     for i in range(6):
@@ -601,7 +643,7 @@ def _predict(P, t, Q, AP, out):  # pragma: no cover - compiled
             out[i, k] = (AP[i, k] + t * AP[i, k + 3] if k < 3 else AP[i, k]) + Q[i, k]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _update(prior, rows, r, noise, PHt, gain, out):  # pragma: no cover - compiled
     """``P − P Hᵀ (H P Hᵀ + R)⁻¹ H P``, symmetrised, for ``r`` rows ``H = [rows, 0]`` (the
     measurements see the position only) and ``R = diag(noise)``."""
@@ -633,7 +675,7 @@ def _update(prior, rows, r, noise, PHt, gain, out):  # pragma: no cover - compil
             out[i, k] = out[k, i] = 0.5 * (a + b)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _rows(q, q_s, ranges, eta, rows, noise):  # pragma: no cover - compiled
     """The planned-for measurement at position ``q`` and world baseline ``q_s``: the paper's
     ``Y`` (one row ``q_s``, variance Γ of the derived model at the true ranges) or the two
@@ -661,10 +703,13 @@ def _rows(q, q_s, ranges, eta, rows, noise):  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def _score_candidates(
-    options, parameters, Q, x, P, baseline, r_q, rotation, n, linear, scores, firsts, buffers
-):  # pragma: no cover - compiled
-    """The criterion summed over the scored horizon and ``P(k+1|k+1)`` of each of the first
-    ``n`` candidate rotations of one run (each repeated every step of the horizon)."""
+    options, parameters, Q, x, P, baseline, r_q, rotation, baselines, first, count, linear,
+    scores, firsts, buffers,
+):  # pragma: no cover - compiled  # fmt: skip
+    """The criterion summed over the scored horizon of candidates ``first`` to
+    ``first + count − 1`` of one run (each rotation repeated every step of the horizon;
+    ``baselines`` their first steps' world baselines), into ``scores``; with ``firsts`` of
+    ``count`` rows, their ``P(k+1|k+1)`` too."""
     t = parameters[_T]
     ranges = options[_MEASUREMENT] == _RANGES and not linear
     first_eta = _ETA if options[_MEASUREMENT] == _RANGE_DIFFERENCE else _ETA_F
@@ -677,7 +722,8 @@ def _score_candidates(
     rows, noise = buffers[6, :2, :3], buffers[6, 2, :2]
     q, q_s = buffers[6, 3, :3], buffers[6, 4, :3]
     _predict(P, t, Q, AP, first_prior)  # the same prior for every candidate
-    for c in range(n):
+    keep = firsts.shape[0] == count
+    for c in range(first, first + count):
         p0, p1, p2 = rotation[c, 0], rotation[c, 1], rotation[c, 2]
         score = 0.0
         for j in range(1, options[_SCORED] + 1):
@@ -686,23 +732,38 @@ def _score_candidates(
             elif prediction == _COAST:
                 jt = j * t
                 q[0], q[1], q[2] = x[0] + jt * x[3], x[1] + jt * x[4], x[2] + jt * x[5]
+            elif j <= lag:  # the lagging reference has not turned yet: Exp(0) r = r
+                q[0], q[1], q[2] = r_q[0], r_q[1], r_q[2]
             else:
-                steps = float(max(j - lag, 0))
+                steps = float(j - lag)
                 q[0], q[1], q[2] = _rotate(
                     steps * p0, steps * p1, steps * p2, r_q[0], r_q[1], r_q[2]
                 )
-            q_s[0], q_s[1], q_s[2] = _rotate(
-                j * p0, j * p1, j * p2, baseline[0], baseline[1], baseline[2]
-            )
+            if j == 1:
+                q_s[0], q_s[1], q_s[2] = baselines[c, 0], baselines[c, 1], baselines[c, 2]
+            else:
+                q_s[0], q_s[1], q_s[2] = _rotate(
+                    j * p0, j * p1, j * p2, baseline[0], baseline[1], baseline[2]
+                )
             m = _rows(q, q_s, ranges, eta, rows, noise)
             if j == 1:
                 _update(first_prior, rows, m, noise, PHt, gain, posterior)
-                firsts[c] = posterior
+                if keep:
+                    firsts[c - first] = posterior
             else:
                 _predict(posterior, t, Q, AP, prior)
                 _update(prior, rows, m, noise, PHt, gain, posterior)
             score += _criterion(posterior, options[_CRITERION], block, work)
         scores[c] = score
+
+
+@njit(cache=True, error_model="numpy")
+def _candidate_baselines(rotation, baseline, out):  # pragma: no cover - compiled
+    """The world baseline after each candidate's first step, ``Exp(φ_c) R b``."""
+    for c in range(rotation.shape[0]):
+        out[c, 0], out[c, 1], out[c, 2] = _rotate(
+            rotation[c, 0], rotation[c, 1], rotation[c, 2], baseline[0], baseline[1], baseline[2]
+        )
 
 
 @njit(cache=True, error_model="numpy")
@@ -719,13 +780,16 @@ def _scores_kernel(
     firsts = np.empty((runs, n, 6, 6))
     buffers = _buffers()
     baseline, r_q = np.empty(3), np.empty(3)
+    baselines = np.empty((n, 3))
     for i in range(runs):
         R = R_WB[i]
         for a in range(3):
             baseline[a] = R[a, 0] * b[0] + R[a, 1] * b[1] + R[a, 2] * b[2]
             r_q[a] = R[a, 0] * q_star[0] + R[a, 1] * q_star[1] + R[a, 2] * q_star[2]
-        _score_candidates(options, parameters, Q, x_hat[i], P[i], baseline, r_q, rotation[i], n,
-                          linear[i] > 0.0, scores[i], firsts[i], buffers)  # fmt: skip
+        _candidate_baselines(rotation[i], baseline, baselines)
+        _score_candidates(options, parameters, Q, x_hat[i], P[i], baseline, r_q, rotation[i],
+                          baselines, 0, n, linear[i] > 0.0, scores[i], firsts[i],
+                          buffers)  # fmt: skip
     return scores, firsts
 
 
@@ -772,150 +836,193 @@ def _candidates_kernel(options, parameters, b, candidates, R_WB):  # pragma: no 
 
 
 @njit(cache=True, error_model="numpy")
-def _plan_kernel(
+def _workspace(n):  # pragma: no cover - compiled
+    """Scratch arrays of one run's plan over ``n`` candidates (reused from run to run)."""
+    return (
+        _buffers(),
+        np.empty((1, 6, 6)),  # the chosen candidate's first posterior
+        np.empty((5, n)),  # scores, objective, reference acceleration, excitation
+        np.empty((2, n), dtype=np.bool_),  # admissible, enough
+        np.empty((2, n, 3)),  # the run's own candidate rotations, their baselines
+        np.empty((4, 3, 3)),  # baseline and R q* (rows 0, 1 of the first), G, L, the turn
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def _plan_run(
     options, parameters, b, q_star, Q, candidates,
-    x_hat, P, R_WB, history, filled, R_previous, has_previous, linear,
+    x, P, R, H, filled, Rp, known, linear, workspace,
+    out_rotation, out_R, out_baseline, out_P, out_stats,
 ):  # pragma: no cover - compiled  # fmt: skip
-    """:meth:`InformationSeekingPlanner.plan_runs` for every run (see there)."""
-    runs, n, kept = x_hat.shape[0], candidates.shape[0], history.shape[1]
+    """One run's plan (:meth:`InformationSeekingPlanner.plan_runs`) into the ``out_`` views."""
+    n, kept = candidates.shape[0], H.shape[0]
     t = parameters[_T]
-    rotation_out = np.empty((runs, 3))
-    R_next = np.empty((runs, 3, 3))
-    baseline_next = np.empty((runs, 3))
-    P_next = np.empty((runs, 6, 6))
-    stats = np.empty((runs, 3))
-    buffers = _buffers()
-    scores, objective = np.empty(n), np.empty(n)
-    acceleration, excitation = np.empty(n), np.empty(n)
-    admissible, enough = np.empty(n, dtype=np.bool_), np.empty(n, dtype=np.bool_)
-    firsts = np.empty((n, 6, 6))
-    own_rotation = np.empty((n, 3))
-    baselines = np.empty((n, 3))
-    baseline, r_q, G, L = np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3))
-    turn = np.empty((3, 3))
+    buffers, firsts, values, flags, vectors, small = workspace
+    scores, objective, acceleration, excitation = values[0], values[1], values[2], values[3]
+    admissible, enough = flags[0], flags[1]
+    own_rotation, baselines = vectors[0], vectors[1]
+    baseline, r_q, G, L, turn = small[0, 0], small[0, 1], small[1], small[2], small[3]
     limit = parameters[_MAX_REFERENCE]
     floor = parameters[_FLOOR]
     window = options[_WINDOW]
-    for i in range(runs):
-        R = R_WB[i]
+    for a in range(3):
+        baseline[a] = R[a, 0] * b[0] + R[a, 1] * b[1] + R[a, 2] * b[2]
+        r_q[a] = R[a, 0] * q_star[0] + R[a, 1] * q_star[1] + R[a, 2] * q_star[2]
+    if options[_CAP]:
+        _cap_rotations(candidates, baseline, parameters[_NORM], own_rotation)
+        rotation = own_rotation
+    else:
+        rotation = candidates
+    _candidate_baselines(rotation, baseline, baselines)
+    _score_candidates(options, parameters, Q, x, P, baseline, r_q, rotation, baselines, 0, n,
+                      linear, scores, firsts[:0], buffers)  # fmt: skip
+    for c in range(n):
+        admissible[c] = True
+        objective[c] = scores[c]
+        acceleration[c] = np.nan
+        excitation[c] = np.nan
+
+    # The reference limit (this run's, when it knows R(k−1)).
+    if limit < np.inf and known > 0.0:
+        s0, s1, s2 = r_q[0], r_q[1], r_q[2]
+        v0 = Rp[0, 0] * q_star[0] + Rp[0, 1] * q_star[1] + Rp[0, 2] * q_star[2]
+        v1 = Rp[1, 0] * q_star[0] + Rp[1, 1] * q_star[1] + Rp[1, 2] * q_star[2]
+        v2 = Rp[2, 0] * q_star[0] + Rp[2, 1] * q_star[1] + Rp[2, 2] * q_star[2]
+        any_within = False
+        for c in range(n):
+            a0, a1, a2 = _rotate(rotation[c, 0], rotation[c, 1], rotation[c, 2], s0, s1, s2)
+            d0, d1, d2 = a0 - 2.0 * s0 + v0, a1 - 2.0 * s1 + v1, a2 - 2.0 * s2 + v2
+            acceleration[c] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) / t**2
+            admissible[c] = acceleration[c] <= limit
+            any_within = any_within or admissible[c]
+        if not any_within:  # the least demanding candidate(s)
+            lowest = np.inf
+            for c in range(n):
+                if acceleration[c] < lowest:
+                    lowest = acceleration[c]
+            for c in range(n):
+                admissible[c] = acceleration[c] <= lowest
+
+    # The excitation floor on the trailing planning window ending with the candidate.
+    if floor > 0.0:
+        f = filled
+        used = int(f) if f >= 0.0 and f <= kept else (kept if f > kept else 0)
+        used = min(used, window - 2)
+        required = floor * min((used + 2) / window, 1.0)
         for a in range(3):
-            baseline[a] = R[a, 0] * b[0] + R[a, 1] * b[1] + R[a, 2] * b[2]
-            r_q[a] = R[a, 0] * q_star[0] + R[a, 1] * q_star[1] + R[a, 2] * q_star[2]
-        if options[_CAP]:
-            _cap_rotations(candidates, baseline, parameters[_NORM], own_rotation)
-            rotation = own_rotation
+            for e in range(3):
+                total = 0.0
+                for row in range(kept - used, kept):
+                    total += H[row, a] * H[row, e]
+                G[a, e] = total + baseline[a] * baseline[e]
+        any_enough = False
+        for c in range(n):
+            u0, u1, u2 = baselines[c, 0], baselines[c, 1], baselines[c, 2]
+            excitation[c] = _symmetric_eigen_3(
+                G[0, 0] + u0 * u0, G[0, 1] + u0 * u1, G[0, 2] + u0 * u2,
+                G[1, 1] + u1 * u1, G[1, 2] + u1 * u2, G[2, 2] + u2 * u2,
+            )[0]  # fmt: skip
+            enough[c] = admissible[c] and excitation[c] >= required
+            any_enough = any_enough or enough[c]
+        if any_enough:
+            for c in range(n):
+                admissible[c] = enough[c]
         else:
-            rotation = candidates
-        for c in range(n):
-            baselines[c, 0], baselines[c, 1], baselines[c, 2] = _rotate(
-                rotation[c, 0],
-                rotation[c, 1],
-                rotation[c, 2],
-                baseline[0],
-                baseline[1],
-                baseline[2],
-            )
-        _score_candidates(options, parameters, Q, x_hat[i], P[i], baseline, r_q, rotation, n,
-                          linear[i] > 0.0, scores, firsts, buffers)  # fmt: skip
-        for c in range(n):
-            admissible[c] = True
-            objective[c] = scores[c]
-            acceleration[c] = np.nan
-            excitation[c] = np.nan
-
-        # The reference limit (this run's, when it knows R(k−1)).
-        if limit < np.inf and has_previous[i] > 0.0:
-            Rp = R_previous[i]
-            s0, s1, s2 = r_q[0], r_q[1], r_q[2]
-            v0 = Rp[0, 0] * q_star[0] + Rp[0, 1] * q_star[1] + Rp[0, 2] * q_star[2]
-            v1 = Rp[1, 0] * q_star[0] + Rp[1, 1] * q_star[1] + Rp[1, 2] * q_star[2]
-            v2 = Rp[2, 0] * q_star[0] + Rp[2, 1] * q_star[1] + Rp[2, 2] * q_star[2]
-            any_within = False
-            for c in range(n):
-                a0, a1, a2 = _rotate(rotation[c, 0], rotation[c, 1], rotation[c, 2], s0, s1, s2)
-                d0, d1, d2 = a0 - 2.0 * s0 + v0, a1 - 2.0 * s1 + v1, a2 - 2.0 * s2 + v2
-                acceleration[c] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) / t**2
-                admissible[c] = acceleration[c] <= limit
-                any_within = any_within or admissible[c]
-            if not any_within:  # the least demanding candidate(s)
-                lowest = np.inf
-                for c in range(n):
-                    if acceleration[c] < lowest:
-                        lowest = acceleration[c]
-                for c in range(n):
-                    admissible[c] = acceleration[c] <= lowest
-
-        # The excitation floor on the trailing planning window ending with the candidate.
-        if floor > 0.0:
-            f = filled[i]
-            used = int(f) if f >= 0.0 and f <= kept else (kept if f > kept else 0)
-            used = min(used, window - 2)
-            required = floor * min((used + 2) / window, 1.0)
-            H = history[i]
+            # Turn toward the least excited direction: x_cᵀ (Λ + εI)⁻¹ x_c = |L⁻¹ x_c|²
+            # with Λ + εI = L Lᵀ (Cholesky).
+            epsilon = parameters[_EPSILON]
             for a in range(3):
-                for e in range(3):
-                    total = 0.0
-                    for row in range(kept - used, kept):
-                        total += H[row, a] * H[row, e]
-                    G[a, e] = total + baseline[a] * baseline[e]
-            any_enough = False
+                for e in range(a + 1):
+                    total = G[a, e] + (epsilon if a == e else 0.0)
+                    for m in range(e):
+                        total -= L[a, m] * L[e, m]
+                    L[a, e] = math.sqrt(total) if a == e else total / L[e, e]
             for c in range(n):
-                u0, u1, u2 = baselines[c, 0], baselines[c, 1], baselines[c, 2]
-                excitation[c] = _symmetric_eigen_3(
-                    G[0, 0] + u0 * u0, G[0, 1] + u0 * u1, G[0, 2] + u0 * u2,
-                    G[1, 1] + u1 * u1, G[1, 2] + u1 * u2, G[2, 2] + u2 * u2,
-                )[0]  # fmt: skip
-                enough[c] = admissible[c] and excitation[c] >= required
-                any_enough = any_enough or enough[c]
-            if any_enough:
-                for c in range(n):
-                    admissible[c] = enough[c]
-            else:
-                # Turn toward the least excited direction: x_cᵀ (Λ + εI)⁻¹ x_c = |L⁻¹ x_c|²
-                # with Λ + εI = L Lᵀ (Cholesky).
-                epsilon = parameters[_EPSILON]
-                for a in range(3):
-                    for e in range(a + 1):
-                        total = G[a, e] + (epsilon if a == e else 0.0)
-                        for m in range(e):
-                            total -= L[a, m] * L[e, m]
-                        L[a, e] = math.sqrt(total) if a == e else total / L[e, e]
-                for c in range(n):
-                    y0 = baselines[c, 0] / L[0, 0]
-                    y1 = (baselines[c, 1] - L[1, 0] * y0) / L[1, 1]
-                    y2 = (baselines[c, 2] - L[2, 0] * y0 - L[2, 1] * y1) / L[2, 2]
-                    objective[c] = y0 * y0 + y1 * y1 + y2 * y2
+                y0 = baselines[c, 0] / L[0, 0]
+                y1 = (baselines[c, 1] - L[1, 0] * y0) / L[1, 1]
+                y2 = (baselines[c, 2] - L[2, 0] * y0 - L[2, 1] * y1) / L[2, 2]
+                objective[c] = y0 * y0 + y1 * y1 + y2 * y2
 
-        # The best admissible candidate (NaN counts as best, as argmax). Candidates within
-        # rounding of the best are ties, taken in grid order: the first one. (The first step's
-        # novelty is exactly equal around a ring, so otherwise rounding would choose.)
-        index, best = -1, 0.0
-        for c in range(n):
-            if admissible[c]:
-                value = objective[c]
-                if index < 0 or (best == best and (value != value or value > best)):
-                    index, best = c, value
-        if best == best:
-            tied = best - _TIE * abs(best)
-            for c in range(index):
-                if admissible[c] and objective[c] >= tied:
-                    index = c
-                    break
-        index = max(index, 0)  # none admissible: only a run holding NaN
-        p0, p1, p2 = rotation[index, 0], rotation[index, 1], rotation[index, 2]
-        rotation_out[i, 0], rotation_out[i, 1], rotation_out[i, 2] = p0, p1, p2
-        exp_so3_kernel(p0, p1, p2, turn)
-        matmul3_kernel(turn, R, R_next[i])
-        N = R_next[i]
+    # The best admissible candidate (NaN counts as best, as argmax). Candidates within
+    # rounding of the best are ties, taken in grid order: the first one. (The first step's
+    # novelty is exactly equal around a ring, so otherwise rounding would choose.)
+    index, best = -1, 0.0
+    for c in range(n):
+        if admissible[c]:
+            value = objective[c]
+            if index < 0 or (best == best and (value != value or value > best)):
+                index, best = c, value
+    if best == best:
+        tied = best - _TIE * abs(best)
+        for c in range(index):
+            if admissible[c] and objective[c] >= tied:
+                index = c
+                break
+    index = max(index, 0)  # none admissible: only a run holding NaN
+    p0, p1, p2 = rotation[index, 0], rotation[index, 1], rotation[index, 2]
+    out_rotation[0], out_rotation[1], out_rotation[2] = p0, p1, p2
+    exp_so3_kernel(p0, p1, p2, turn)
+    matmul3_kernel(turn, R, out_R)
+    for a in range(3):
+        out_baseline[a] = out_R[a, 0] * b[0] + out_R[a, 1] * b[1] + out_R[a, 2] * b[2]
+    # The chosen candidate's P(k+1|k+1), scored again (the same arithmetic, the same bits).
+    _score_candidates(options, parameters, Q, x, P, baseline, r_q, rotation, baselines, index, 1,
+                      linear, values[4, :1], firsts[:1], buffers)  # fmt: skip
+    out_P[:, :] = firsts[0]
+    out_stats[0], out_stats[1], out_stats[2] = scores[index], excitation[index], acceleration[index]
+
+
+@njit(cache=True, error_model="numpy")
+def _plan_kernel(
+    options, parameters, b, q_star, Q, candidates,
+    x_hat, P, R_WB, history, filled, R_previous, has_previous, linear, both,
+):  # pragma: no cover - compiled  # fmt: skip
+    """:meth:`InformationSeekingPlanner.plan_runs` for every run, and with ``both`` the plan
+    of step k+1 after it (:meth:`InformationSeekingPlanner.plan_pair_runs`)."""
+    runs, n, kept = x_hat.shape[0], candidates.shape[0], history.shape[1]
+    stages = 2 if both else 1
+    rotation = np.empty((stages, runs, 3))
+    R_next = np.empty((stages, runs, 3, 3))
+    baseline = np.empty((stages, runs, 3))
+    P_next = np.empty((stages, runs, 6, 6))
+    stats = np.empty((stages, runs, 3))
+    workspace = _workspace(n)
+    next_history = np.empty((kept, 3))
+    next_x = np.empty(6)
+    t = parameters[_T]
+    for i in range(runs):
+        run_linear = linear[i] > 0.0
+        _plan_run(options, parameters, b, q_star, Q, candidates,
+                  x_hat[i], P[i], R_WB[i], history[i], filled[i], R_previous[i],
+                  has_previous[i], run_linear, workspace,
+                  rotation[0, i], R_next[0, i], baseline[0, i], P_next[0, i],
+                  stats[0, i])  # fmt: skip
+        if not both:
+            continue
+        # Step k+1 from the planned R(k+1) and P(k+1|k+1), q_s(k) appended to the history.
+        R = R_WB[i]
+        for row in range(kept - 1):
+            next_history[row] = history[i, row + 1]
         for a in range(3):
-            baseline_next[i, a] = N[a, 0] * b[0] + N[a, 1] * b[1] + N[a, 2] * b[2]
-        P_next[i] = firsts[index]
-        stats[i, 0], stats[i, 1], stats[i, 2] = (
-            scores[index],
-            excitation[index],
-            acceleration[index],
+            next_history[kept - 1, a] = R[a, 0] * b[0] + R[a, 1] * b[1] + R[a, 2] * b[2]
+        next_filled = filled[i] + 1.0
+        next_filled = kept if next_filled > kept else next_filled
+        for a in range(6):
+            next_x[a] = x_hat[i, a]
+        if options[_PREDICTION] == _COAST:  # x̂(k+1|k) without the control
+            for a in range(3):
+                next_x[a] = x_hat[i, a] + t * x_hat[i, a + 3]
+        # Still the linear start at k+1 unless the planned P(k+1|k+1) hands over.
+        Pn = P_next[0, i]
+        hands_over = (
+            options[_THRESHOLD_SET] == 0 or Pn[0, 0] + Pn[1, 1] + Pn[2, 2] <= parameters[_THRESHOLD]
         )
-    return rotation_out, R_next, baseline_next, P_next, stats
+        _plan_run(options, parameters, b, q_star, Q, candidates,
+                  next_x, Pn, R_next[0, i], next_history, next_filled, R, 1.0,
+                  run_linear and not hands_over, workspace,
+                  rotation[1, i], R_next[1, i], baseline[1, i], P_next[1, i],
+                  stats[1, i])  # fmt: skip
+    return rotation, R_next, baseline, P_next, stats
 
 
 def _checked_model(

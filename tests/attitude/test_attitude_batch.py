@@ -246,7 +246,7 @@ def test_the_planner_batch_exercises_every_branch() -> None:
         system.GetInputPort(port).FixValue(context, value.ravel())
     for group, value in enumerate(states):
         context.SetDiscreteState(group, value.ravel())
-    steps = system._step.Eval(context)
+    steps = system.plans(context)[0]
     limit = system.planner.max_reference_acceleration
     known = ~np.isnan(steps.reference_acceleration)
     assert (steps.reference_acceleration[known] <= limit).any()
