@@ -16,10 +16,11 @@ from drake_uuv.primitives.setting import array_field, time_step_field
 class AttitudeSetting:
     """What every system of the attitude slot gets besides its own configuration.
 
-    An attitude generator is built as ``cls(config, setting=AttitudeSetting(...),
-    batch_size=B)``; the
-    slot's factory (:func:`drake_uuv.attitude.make_attitude_generator`) makes the setting
-    from the scenario (:func:`drake_uuv.attitude.factory.attitude_setting`). Fields:
+    An attitude generator is built as
+    ``cls(config, setting=AttitudeSetting(...), batch_size=B)``; the slot's factory
+    (:func:`drake_uuv.attitude.make_attitude_generator`) makes the setting from the scenario
+    (:func:`drake_uuv.attitude.factory.attitude_setting`); every run of a batch shares it.
+    Fields:
 
     - ``time_step``: t [s], the period of the loop (the scenario's ``time_step``): the
       command ``u2`` turns ``R(k)`` into ``R(k+1) = Exp(u2 t) R(k)``.

@@ -45,7 +45,9 @@ class InformationSeekingAttitude(LeafSystem):
     planner run once more from ``R(k+1)``, the planner's own ``P(k+1|k+1)`` and the history
     with ``q_s(k)`` appended. For the paper's KF that covariance is exact up to ``Γ`` (which
     the filter computes from the measured rather than the predicted ranges), so the
-    prediction is usually the next step's choice.
+    prediction is usually the next step's choice. Both plans of every run come from one call
+    (:meth:`~drake_uuv.models.information_planner.InformationSeekingPlanner.plan_pair_runs`),
+    cached for the step (:meth:`plans`).
 
     Sonar beam: the pan-tilt sonars (``sonar.beam_half_angle_deg``) point at the estimator's
     predicted target whatever the attitude, so the attitude does not decide visibility; it

@@ -65,6 +65,25 @@ With ``max_reference_acceleration`` a candidate is admissible only if
 ``|R(k+1) q* − 2 R(k) q* + R(k−1) q*| / t² ≤`` that limit (if none is, the one needing the
 least is taken); this also bounds the feed-forward ``a_ff`` of the LQR law, built from the
 same differences of its plan. The limit takes precedence over the excitation floor.
+
+The choice
+----------
+The best admissible candidate by the score (or, under the floor's fallback, the novelty).
+Candidates whose objectives differ by less than 1e-10 (relative) tie, and the first in grid
+order is taken: at the first step the novelty is exactly equal around the cap's outer ring,
+and rounding would otherwise choose.
+
+A batch of runs
+---------------
+:meth:`InformationSeekingPlanner.plan_runs` plans B runs at once, each on its own: its own
+candidates (the cap turns with its baseline), scores, reference limit, floor and fallback,
+whatever the other runs hold; :meth:`~InformationSeekingPlanner.plan` is one run of it. The
+work is one numba kernel looping over runs and candidates (scalar code on small buffers): at
+one run numpy's cost per call dominated (dozens of calls on n×6×6 stacks per horizon step),
+at a thousand its passes over (B, n, 6, 6) temporaries would. The covariance propagation is
+written out for the double integrator ``A = [[I, tI], [0, I]]``; the 3×3 eigenvalues (the
+excitation, E-optimality of the position block) are in closed form (Smith's), 6×6 ones by
+cyclic Jacobi. A run holding NaN or inf neither raises nor changes the other runs.
 """
 
 from __future__ import annotations
