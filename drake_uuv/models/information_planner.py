@@ -547,7 +547,7 @@ _TIE = 1e-10  # relative difference of two objectives below which they tie
 _MIN_RANGE = MIN_RANGE
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _rotate(p0, p1, p2, v0, v1, v2):  # pragma: no cover - compiled
     """``Exp(φ) v`` (Rodrigues, as ``attitude_candidates.rotate_vectors``)."""
     angle = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
@@ -563,7 +563,7 @@ def _rotate(p0, p1, p2, v0, v1, v2):  # pragma: no cover - compiled
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _symmetric_eigen_3(a00, a01, a02, a11, a12, a22):  # pragma: no cover - compiled
     """Smallest and largest eigenvalue of a symmetric 3×3 (closed form, Smith 1961)."""
     p1 = a01 * a01 + a02 * a02 + a12 * a12
@@ -618,7 +618,7 @@ def _largest_eigenvalue(M, n, work):  # pragma: no cover - compiled
     return largest
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _criterion(P, criterion, n, work):  # pragma: no cover - compiled
     """The criterion of the leading n×n block of a covariance (higher is better)."""
     if criterion == _A_OPTIMAL:
@@ -651,7 +651,7 @@ def _criterion(P, criterion, n, work):  # pragma: no cover - compiled
     return -log_det
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _predict(P, t, Q, AP, out):  # pragma: no cover - compiled
     """``A P Aᵀ + Q`` for the double integrator ``A = [[I, tI], [0, I]]``, written out."""
     for i in range(6):
@@ -662,7 +662,7 @@ def _predict(P, t, Q, AP, out):  # pragma: no cover - compiled
             out[i, k] = (AP[i, k] + t * AP[i, k + 3] if k < 3 else AP[i, k]) + Q[i, k]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _update(prior, rows, r, noise, PHt, gain, out):  # pragma: no cover - compiled
     """``P − P Hᵀ (H P Hᵀ + R)⁻¹ H P``, symmetrised, for ``r`` rows ``H = [rows, 0]`` (the
     measurements see the position only) and ``R = diag(noise)``."""
@@ -694,7 +694,7 @@ def _update(prior, rows, r, noise, PHt, gain, out):  # pragma: no cover - compil
             out[i, k] = out[k, i] = 0.5 * (a + b)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _rows(q, q_s, ranges, eta, rows, noise):  # pragma: no cover - compiled
     """The planned-for measurement at position ``q`` and world baseline ``q_s``: the paper's
     ``Y`` (one row ``q_s``, variance Γ of the derived model at the true ranges) or the two
