@@ -8,7 +8,7 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
 from drake_uuv.models.attitude_plans import attitude_commands, planned_attitudes
 from drake_uuv.models.information import EstimatorPlanningModel, TrackingPlanningModel
-from drake_uuv.primitives.batch import batch_size_field, per_run
+from drake_uuv.primitives.batch import batch_size_field
 from drake_uuv.primitives.setting import array_field, time_step_field
 
 
@@ -110,6 +110,8 @@ class AttitudeGenerator(LeafSystem):
         self._max_rate = max_angular_rate
         self.batch_size = B = batch_size_field(batch_size)
         self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9 * B)
+        # Where each entry of a held plan comes from: run i's R(k) twice.
+        self._held = (9 * np.arange(B)[:, np.newaxis] + np.tile(np.arange(9), 2)).ravel()
 
     def _declare_outputs(self) -> None:
         """Call at the end of a subclass ``__init__``, after its own input ports."""
@@ -148,9 +150,8 @@ class AttitudeGenerator(LeafSystem):
     def _calc_plan(self, context: Context, output: BasicVector) -> None:
         R_WB = self._attitude_port.Eval(context)
         R_desired = self.desired_attitudes(context)
-        if R_desired is None:
-            held = per_run(R_WB, self.batch_size)
-            output.set_value(np.concatenate([held, held], axis=1).ravel())
+        if R_desired is None:  # each run holds its attitude: R(k+1) = R(k+2) = R(k)
+            output.set_value(R_WB[self._held])
             return
         plan = planned_attitudes(
             R_desired, self.next_desired_attitudes(context), R_WB, self._time_step, self._max_rate
