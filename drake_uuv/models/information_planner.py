@@ -164,8 +164,11 @@ class InformationSeekingPlanner:
     """Chooses the next attitude ``R(k+1)`` that makes the next measurements most informative.
 
     See the module notes for the model, the criteria, the horizon, the excitation floor and
-    the reference limit. :meth:`plan` is a pure function of its arguments: the same inputs
-    give the same choice.
+    the reference limit. :meth:`plan_runs` (B runs) and :meth:`plan` (one) are pure
+    functions of their arguments: the same inputs give the same choice, in any batch. The
+    numpy methods :meth:`predict_covariance`, :meth:`measurement_rows` and
+    :meth:`predicted_positions` state the planned-for model of one run; the planning itself is
+    the kernel, which the tests check against them.
 
     Parameters: ``time_step`` t [s]; ``baseline_B`` b (3) [m]; ``acceleration_covariance`` W
     (3×3) of the target [m²/s⁴]; ``noise_variances`` η (2) [m²]; ``samples_per_step`` f;
