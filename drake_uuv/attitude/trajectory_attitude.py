@@ -46,9 +46,9 @@ class TrajectoryAttitudeGenerator(AttitudeGenerator):
         # R̄(k) depends on k alone: every run of the batch (and of a study) reuses it.
         @functools.lru_cache(maxsize=4096)
         def attitude(k: int) -> np.ndarray:
-            R = trajectory_attitude(k, b, rho, h_amplitude, h_frequency).reshape(1, 3, 3)
-            R.flags.writeable = False
-            return R
+            # Shared by the cache: only read (writable all the same, so that the compiled
+            # kernels see the same array type as Algorithm 1's and compile once).
+            return trajectory_attitude(k, b, rho, h_amplitude, h_frequency).reshape(1, 3, 3)
 
         self._attitude = attitude
         self._declare_outputs()

@@ -309,6 +309,7 @@ class InformationSeekingPlanner:
             ]
         )
         self._q_star = np.zeros(3) if self.q_star is None else self.q_star.copy()
+        self._b = self.baseline_B.copy()  # writable, as every kernel argument
         self._candidates = np.ascontiguousarray(self._ball if reference else self._cap_rotations_z)
 
     @property
@@ -374,7 +375,7 @@ class InformationSeekingPlanner:
     def candidate_rotations_runs(self, R_WB: np.ndarray) -> np.ndarray:
         """:meth:`candidate_rotations` of each run's ``R(k)`` (``(B, 3, 3)`` → ``(B, n, 3)``)."""
         return _candidates_kernel(
-            self._options, self._parameters, self.baseline_B, self._candidates, _matrices(R_WB)
+            self._options, self._parameters, self._b, self._candidates, _matrices(R_WB)
         )
 
     def horizon_scores(
@@ -395,13 +396,13 @@ class InformationSeekingPlanner:
         scores, posteriors = _scores_kernel(
             self._options,
             self._parameters,
-            self.baseline_B,
+            self._b,
             self._q_star,
             self.Q,
             _vectors(x_hat, 6),
             _matrices(P, 6),
             _matrices(R_WB),
-            np.ascontiguousarray(rotation, dtype=float).reshape(1, -1, 3),
+            np.require(rotation, float, "CW").reshape(1, -1, 3),
             np.array([1.0 if linear_start else 0.0]),
         )
         return scores[0], posteriors[0]
@@ -501,14 +502,14 @@ class InformationSeekingPlanner:
         rotation, R_next, baseline, P_next, stats = _plan_kernel(
             self._options,
             self._parameters,
-            self.baseline_B,
+            self._b,
             self._q_star,
             self.Q,
             self._candidates,
             _vectors(x_hat, 6),
             _matrices(P, 6),
             R_WB,
-            np.ascontiguousarray(history, dtype=float).reshape(runs, -1, 3),
+            np.require(history, float, "CW").reshape(runs, -1, 3),
             _vectors(filled, 1).reshape(runs),
             _matrices(R_previous),
             _vectors(has_previous, 1).reshape(runs),
@@ -521,14 +522,18 @@ class InformationSeekingPlanner:
         )
 
 
+# The kernels get C-contiguous, writable float arrays whatever the caller holds (a state's
+# read-only view, a list): one compiled signature for every caller.
+
+
 def _matrices(M: np.ndarray, n: int = 3) -> np.ndarray:
     """One or a batch of n×n matrices as a C-contiguous float ``(B, n, n)`` array."""
-    return np.ascontiguousarray(M, dtype=float).reshape(-1, n, n)
+    return np.require(M, float, "CW").reshape(-1, n, n)
 
 
 def _vectors(v: np.ndarray, n: int) -> np.ndarray:
     """One or a batch of n-vectors as a C-contiguous float ``(B, n)`` array."""
-    return np.ascontiguousarray(v, dtype=float).reshape(-1, n)
+    return np.require(v, float, "CW").reshape(-1, n)
 
 
 # ------------------------------------------------------------------ the kernel (numba)
