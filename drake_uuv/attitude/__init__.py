@@ -5,7 +5,9 @@ attitude), and any other signal it needs by name (a random ``rotation_noise`` fo
 the filtered estimate for the information-seeking planner); outputs ``u2_W`` (the paper's u2,
 world frame, so that ``R(k+1) = Exp(u2 t) R(k)``) and ``R_WB_plan`` (the planned ``R(k+1)``,
 ``R(k+2)``). See :mod:`drake_uuv.signals`. Each system is built as
-``cls(config, setting=AttitudeSetting(...))`` (:class:`~drake_uuv.attitude.base.AttitudeSetting`).
+``cls(config, setting=AttitudeSetting(...), batch_size=B)``
+(:class:`~drake_uuv.attitude.base.AttitudeSetting`) and steps B runs, every port and state
+holding them row-major (:mod:`drake_uuv.primitives.batch`).
 """
 
 from drake_uuv.attitude.base import AttitudeGenerator, AttitudeSetting

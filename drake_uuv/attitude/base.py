@@ -6,9 +6,9 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
-from drake_uuv.models.attitude_plans import attitude_command
+from drake_uuv.models.attitude_plans import attitude_commands, planned_attitudes
 from drake_uuv.models.information import EstimatorPlanningModel, TrackingPlanningModel
-from drake_uuv.models.so3 import exp_so3
+from drake_uuv.primitives.batch import batch_size_field
 from drake_uuv.primitives.setting import array_field, time_step_field
 
 
@@ -16,9 +16,11 @@ from drake_uuv.primitives.setting import array_field, time_step_field
 class AttitudeSetting:
     """What every system of the attitude slot gets besides its own configuration.
 
-    An attitude generator is built as ``cls(config, setting=AttitudeSetting(...))``; the
-    slot's factory (:func:`drake_uuv.attitude.make_attitude_generator`) makes the setting
-    from the scenario (:func:`drake_uuv.attitude.factory.attitude_setting`). Fields:
+    An attitude generator is built as
+    ``cls(config, setting=AttitudeSetting(...), batch_size=B)``; the slot's factory
+    (:func:`drake_uuv.attitude.make_attitude_generator`) makes the setting from the scenario
+    (:func:`drake_uuv.attitude.factory.attitude_setting`); every run of a batch shares it.
+    Fields:
 
     - ``time_step``: t [s], the period of the loop (the scenario's ``time_step``): the
       command ``u2`` turns ``R(k)`` into ``R(k+1) = Exp(u2 t) R(k)``.
@@ -72,21 +74,23 @@ class AttitudeGenerator(LeafSystem):
     """Base of the attitude generators: ``u2(k) = Log(R̄(k) R(k)ᵀ) / t`` so that
     ``R(k+1) = R̄(k)``, for the desired attitude ``R̄(k)`` a subclass supplies.
 
-    With ``max_angular_rate`` the command is scaled down to that norm: the attitude then moves
-    towards ``R̄(k)`` along the same geodesic without reaching it in one step. ``u2`` is a
-    world-frame rate, as the plant (paper eq. 2) left-multiplies by ``Exp(u2 t)``.
+    With ``max_angular_rate`` a run whose command exceeds it is scaled down to that norm: its
+    attitude then moves towards ``R̄(k)`` along the same geodesic without reaching it in one
+    step. ``u2`` is a world-frame rate, as the plant (paper eq. 2) left-multiplies by
+    ``Exp(u2 t)``.
 
     The generator also publishes its *plan*, the attitudes ``R(k+1)`` and ``R(k+2)`` it will
     produce, for a tracking controller that feeds the turning reference ``R q*`` forward.
     ``R(k+1) = Exp(u2(k) t) R(k)`` is always known; ``R(k+2)`` rolls the generator's own law one
-    step further where a subclass knows ``R̄(k+1)`` (:meth:`next_desired_attitude`), and is
+    step further where a subclass knows ``R̄(k+1)`` (:meth:`next_desired_attitudes`), and is
     ``R(k+1)`` otherwise.
 
-    Subclasses override :meth:`desired_attitude` (and :meth:`next_desired_attitude`), and
+    Subclasses override :meth:`desired_attitudes` (and :meth:`next_desired_attitudes`), and
     may declare input ports of their own before calling :meth:`_declare_outputs`; they take
     the period from the slot's ``setting``.
 
-    Common ports:
+    Common ports (sizes per run; with ``batch_size`` B every port holds B runs row-major,
+    :mod:`drake_uuv.primitives.batch`):
 
     - input ``R_WB_nav`` (9, row-major): the current attitude ``R(k)`` as the navigation
       knows it: the command turns the navigated attitude onto ``R̄(k)``.
@@ -94,56 +98,62 @@ class AttitudeGenerator(LeafSystem):
     - output ``R_WB_plan`` (18): the planned ``R(k+1)`` and ``R(k+2)``, each row-major.
     """
 
-    def __init__(self, *, setting: AttitudeSetting, max_angular_rate: float | None = None) -> None:
+    def __init__(
+        self,
+        *,
+        setting: AttitudeSetting,
+        max_angular_rate: float | None = None,
+        batch_size: int = 1,
+    ) -> None:
         super().__init__()
         self._time_step = setting.time_step
         self._max_rate = max_angular_rate
-        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
+        self.batch_size = B = batch_size_field(batch_size)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9 * B)
+        # Where each entry of a held plan comes from: run i's R(k) twice.
+        self._held = (9 * np.arange(B)[:, np.newaxis] + np.tile(np.arange(9), 2)).ravel()
 
     def _declare_outputs(self) -> None:
         """Call at the end of a subclass ``__init__``, after its own input ports."""
-        self.DeclareVectorOutputPort("u2_W", 3, self._calc_rate)
-        self.DeclareVectorOutputPort("R_WB_plan", 18, self._calc_plan)
+        B = self.batch_size
+        self.DeclareVectorOutputPort("u2_W", 3 * B, self._calc_rate)
+        self.DeclareVectorOutputPort("R_WB_plan", 18 * B, self._calc_plan)
 
     @property
     def time_step(self) -> float:
         return self._time_step
 
     def step_index(self, context: Context) -> int:
-        """The sample index k of the context's time."""
+        """The sample index k of the context's time (the same for every run)."""
         return round(context.get_time() / self._time_step)
 
-    def desired_attitude(self, context: Context) -> np.ndarray | None:
-        """``R̄(k)``, or None to hold the attitude."""
+    def desired_attitudes(self, context: Context) -> np.ndarray | None:
+        """``R̄(k)``: ``(B, 3, 3)`` one per run, or ``(1, 3, 3)`` for all runs; None to hold
+        the attitude of every run."""
         raise NotImplementedError
 
-    def next_desired_attitude(self, context: Context) -> np.ndarray | None:
-        """``R̄(k+1)`` if it is known at step k, else None (the plan then holds ``R(k+1)``)."""
+    def next_desired_attitudes(self, context: Context) -> np.ndarray | None:
+        """``R̄(k+1)`` (as :meth:`desired_attitudes`) if it is known at step k, else None (the
+        plan then holds ``R(k+1)``)."""
         return None
 
-    def _command(self, R_desired: np.ndarray, R_WB: np.ndarray) -> np.ndarray:
-        return attitude_command(R_desired, R_WB, self._time_step, self._max_rate)
-
     def _calc_rate(self, context: Context, output: BasicVector) -> None:
-        R_desired = self.desired_attitude(context)
+        R_desired = self.desired_attitudes(context)
         if R_desired is None:
             output.SetZero()
             return
-        output.set_value(self._command(R_desired, self._attitude_port.Eval(context).reshape(3, 3)))
-
-    def planned_attitudes(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
-        """``(R(k+1), R(k+2))`` as this generator will command them (see the class notes)."""
-        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        R_desired = self.desired_attitude(context)
-        if R_desired is None:
-            return R_WB, R_WB
-        t = self._time_step
-        R_next = exp_so3(self._command(R_desired, R_WB) * t) @ R_WB
-        R_desired_next = self.next_desired_attitude(context)
-        if R_desired_next is None:
-            return R_next, R_next
-        return R_next, exp_so3(self._command(R_desired_next, R_next) * t) @ R_next
+        R_WB = self._attitude_port.Eval(context)
+        output.set_value(
+            attitude_commands(R_desired, R_WB, self._time_step, self._max_rate).ravel()
+        )
 
     def _calc_plan(self, context: Context, output: BasicVector) -> None:
-        R_next, R_after = self.planned_attitudes(context)
-        output.set_value(np.concatenate([R_next.ravel(), R_after.ravel()]))
+        R_WB = self._attitude_port.Eval(context)
+        R_desired = self.desired_attitudes(context)
+        if R_desired is None:  # each run holds its attitude: R(k+1) = R(k+2) = R(k)
+            output.set_value(R_WB[self._held])
+            return
+        plan = planned_attitudes(
+            R_desired, self.next_desired_attitudes(context), R_WB, self._time_step, self._max_rate
+        )
+        output.set_value(plan.ravel())

@@ -21,7 +21,8 @@ from drake_uuv.scenario import (
     TrajectoryAttitude,
 )
 
-#: Variant dataclass → its system, built as ``cls(config, setting=AttitudeSetting(...))``.
+#: Variant dataclass → its system, built as
+#: ``cls(config, setting=AttitudeSetting(...), batch_size=B)``.
 ATTITUDE_GENERATORS: dict[type, type[LeafSystem]] = {
     FixedAttitude: FixedAttitudeGenerator,
     RandomAttitude: RandomAttitudeGenerator,
@@ -45,10 +46,7 @@ def attitude_setting(scenario: Scenario) -> AttitudeSetting:
 
 
 def make_attitude_generator(scenario: Scenario, *, batch_size: int = 1) -> LeafSystem:
-    """The attitude generator of ``scenario.attitude``'s variant."""
+    """The attitude generator of ``scenario.attitude``'s variant, stepping ``batch_size``
+    runs."""
     cls = variant_system(ATTITUDE_GENERATORS, scenario.attitude, "attitude")
-    return cls(scenario.attitude, setting=attitude_setting(scenario), **_TRANSITIONAL(batch_size))
-
-
-def _TRANSITIONAL(batch_size: int) -> dict:  # TRANSITIONAL until the slot's systems batch
-    return {} if batch_size == 1 else {"batch_size": batch_size}
+    return cls(scenario.attitude, setting=attitude_setting(scenario), batch_size=batch_size)

@@ -19,13 +19,16 @@ class FixedAttitudeGenerator(AttitudeGenerator):
         - u2_W
         - R_WB_plan
 
-    Ports as in :class:`~drake_uuv.attitude.base.AttitudeGenerator`. ``config``
+    Ports as in :class:`~drake_uuv.attitude.base.AttitudeGenerator` (sizes per run; with
+    ``batch_size`` B every port holds B runs row-major). ``config``
     (:class:`~drake_uuv.scenario.FixedAttitude`) has no parameters.
     """
 
-    def __init__(self, config: FixedAttitude, *, setting: AttitudeSetting) -> None:
-        super().__init__(setting=setting)
+    def __init__(
+        self, config: FixedAttitude, *, setting: AttitudeSetting, batch_size: int = 1
+    ) -> None:
+        super().__init__(setting=setting, batch_size=batch_size)
         self._declare_outputs()
 
-    def desired_attitude(self, context: Context) -> np.ndarray | None:
+    def desired_attitudes(self, context: Context) -> np.ndarray | None:
         return None

@@ -12,7 +12,8 @@ from pydrake.systems.framework import (
 
 from drake_uuv.attitude.base import AttitudeSetting
 from drake_uuv.models.information import PlannedMeasurement
-from drake_uuv.models.information_planner import InformationSeekingPlanner, PlanStep
+from drake_uuv.models.information_planner import InformationSeekingPlanner, PlanSteps
+from drake_uuv.primitives.batch import batch_size_field, per_run
 from drake_uuv.scenario.attitude import InformationSeeking
 
 
@@ -44,7 +45,9 @@ class InformationSeekingAttitude(LeafSystem):
     planner run once more from ``R(k+1)``, the planner's own ``P(k+1|k+1)`` and the history
     with ``q_s(k)`` appended. For the paper's KF that covariance is exact up to ``Γ`` (which
     the filter computes from the measured rather than the predicted ranges), so the
-    prediction is usually the next step's choice.
+    prediction is usually the next step's choice. Both plans of every run come from one call
+    (:meth:`~drake_uuv.models.information_planner.InformationSeekingPlanner.plan_pair_runs`),
+    cached for the step (:meth:`plans`).
 
     Sonar beam: the pan-tilt sonars (``sonar.beam_half_angle_deg``) point at the estimator's
     predicted target whatever the attitude, so the attitude does not decide visibility; it
@@ -59,6 +62,11 @@ class InformationSeekingAttitude(LeafSystem):
     group 1, ``R(k)`` row-major followed by 1 once it is set (``R(k−1)`` for the next step's
     reference limit); group 2, 1 once a raw-range estimator has left its linear start (the
     planner's mirror of its hand-over, from ``P_TU``; the hand-over is one-way).
+
+    Sizes are per run: with ``batch_size`` B every port and state group holds B runs
+    row-major (:mod:`drake_uuv.primitives.batch`). Each run is planned on its own
+    (:meth:`~drake_uuv.models.information_planner.InformationSeekingPlanner.plan_runs`): its
+    candidates, scores, floor, reference limit and linear start, whatever the other runs do.
 
     .. pydrake_system::
 
@@ -89,96 +97,95 @@ class InformationSeekingAttitude(LeafSystem):
     tracking a body-frame q*, at the held position otherwise.
     """
 
-    def __init__(self, config: InformationSeeking, *, setting: AttitudeSetting) -> None:
+    def __init__(
+        self, config: InformationSeeking, *, setting: AttitudeSetting, batch_size: int = 1
+    ) -> None:
         super().__init__()
         planner = information_planner(config, setting)
+        self.batch_size = B = batch_size_field(batch_size)
         self._planner = planner
         self._time_step = planner.time_step
         self._history = planner.history_length
-        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
-        self._estimate_port = self.DeclareVectorInputPort("x_TU_hat", 6)
-        self._covariance_port = self.DeclareVectorInputPort("P_TU", 36)
-        self._history_index = self.DeclareDiscreteState(3 * self._history + 1)
-        self._previous_index = self.DeclareDiscreteState(10)
-        self._handed_over_index = self.DeclareDiscreteState(1)
-        self._step = self.DeclareCacheEntry(
-            "plan of step k",
-            ValueProducer(allocate=AbstractValue.Make(object()).Clone, calc=self._calc_step),
+        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9 * B)
+        self._estimate_port = self.DeclareVectorInputPort("x_TU_hat", 6 * B)
+        self._covariance_port = self.DeclareVectorInputPort("P_TU", 36 * B)
+        self._history_index = self.DeclareDiscreteState(B * (3 * self._history + 1))
+        self._previous_index = self.DeclareDiscreteState(B * 10)
+        self._handed_over_index = self.DeclareDiscreteState(B)
+        self._plans = self.DeclareCacheEntry(
+            "plans of steps k and k+1",
+            ValueProducer(allocate=AbstractValue.Make(object()).Clone, calc=self._calc_plans),
             {self.all_input_ports_ticket(), self.xd_ticket()},
         )
-        self._next_step = self.DeclareCacheEntry(
-            "plan of step k+1",
-            ValueProducer(allocate=AbstractValue.Make(object()).Clone, calc=self._calc_next),
-            {self._step.ticket(), self.all_input_ports_ticket(), self.xd_ticket()},
-        )
-        self.DeclareVectorOutputPort("u2_W", 3, self._calc_rate, {self._step.ticket()})
-        self.DeclareVectorOutputPort(
-            "R_WB_plan", 18, self._calc_plan, {self._step.ticket(), self._next_step.ticket()}
-        )
+        self.DeclareVectorOutputPort("u2_W", 3 * B, self._calc_rate, {self._plans.ticket()})
+        self.DeclareVectorOutputPort("R_WB_plan", 18 * B, self._calc_plan, {self._plans.ticket()})
         self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
 
     @property
     def planner(self) -> InformationSeekingPlanner:
         return self._planner
 
-    def _linear_start(self, context: Context, P: np.ndarray) -> bool:
-        """Whether the estimator's update at k+1 is still its linear start's (mirrored)."""
-        if context.get_discrete_state(self._handed_over_index).get_value()[0] > 0.0:
-            return False
-        return not self._planner.hands_over(P)
+    def _linear_start(self, context: Context, P: np.ndarray) -> np.ndarray:
+        """Per run (``P`` (B, 6, 6)): whether the estimator's update at k+1 is still its linear
+        start's (mirrored), as 1.0 or 0.0."""
+        handed_over = context.get_discrete_state(self._handed_over_index).get_value() > 0.0
+        return (~handed_over & ~self._planner.hands_over_runs(P)).astype(float)
 
-    def _stored(self, context: Context) -> tuple[np.ndarray, np.ndarray | None]:
-        """``(previous baselines (m×3, oldest first), R(k−1) or None)`` from the state."""
-        state = context.get_discrete_state(self._history_index).get_value()
-        filled = int(state[-1])
-        history = state[:-1].reshape(self._history, 3)[self._history - filled :]
-        previous = context.get_discrete_state(self._previous_index).get_value()
-        return history, (previous[:9].reshape(3, 3) if previous[9] > 0.0 else None)
+    def _stored(self, context: Context) -> tuple[np.ndarray, ...]:
+        """``(history (B, N − 2, 3), filled (B), R(k−1) (B, 3, 3), R(k−1) set (B))`` from the
+        state: each run's last ``filled`` baselines are its known ones (oldest first)."""
+        B = self.batch_size
+        state = per_run(context.get_discrete_state(self._history_index).get_value(), B)
+        previous = per_run(context.get_discrete_state(self._previous_index).get_value(), B)
+        history = state[:, :-1].reshape(B, self._history, 3)
+        return history, state[:, -1], previous[:, :9], previous[:, 9]
 
     def _inputs(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        x_hat = self._estimate_port.Eval(context)
-        P = self._covariance_port.Eval(context).reshape(6, 6)
+        B = self.batch_size
+        R_WB = per_run(self._attitude_port.Eval(context), B, 3, 3)
+        x_hat = per_run(self._estimate_port.Eval(context), B)
+        P = per_run(self._covariance_port.Eval(context), B, 6, 6)
         return R_WB, x_hat, P
 
-    def _calc_step(self, context: Context, value: AbstractValue) -> None:
-        R_WB, x_hat, P = self._inputs(context)
-        history, R_previous = self._stored(context)
-        linear = self._linear_start(context, P)
-        value.set_value(self._planner.plan(x_hat, P, R_WB, history, R_previous, linear))
+    def _baselines(self, R_WB: np.ndarray) -> np.ndarray:
+        """Each run's world baseline ``R b`` (B, 3), summed in index order."""
+        b = self._planner.baseline_B
+        return R_WB[:, :, 0] * b[0] + R_WB[:, :, 1] * b[1] + R_WB[:, :, 2] * b[2]
 
-    def _calc_next(self, context: Context, value: AbstractValue) -> None:
-        step: PlanStep = self._step.Eval(context)
-        R_WB, x_hat, _ = self._inputs(context)
-        history, _ = self._stored(context)
-        history = np.vstack([history, R_WB @ self._planner.baseline_B])[-self._history :]
-        if self._planner.position_prediction == "coast":
-            x_hat = self._planner.A @ x_hat
-        linear = self._linear_start(context, step.P_next) and self._linear_start(
-            context, self._inputs(context)[2]
+    def plans(self, context: Context) -> tuple[PlanSteps, PlanSteps]:
+        """Each run's plan of step k (the command) and of step k+1 (the plan's ``R(k+2)``)."""
+        return self._plans.Eval(context)
+
+    def _calc_plans(self, context: Context, value: AbstractValue) -> None:
+        R_WB, x_hat, P = self._inputs(context)
+        history, filled, R_previous, has_previous = self._stored(context)
+        linear = self._linear_start(context, P)
+        value.set_value(
+            self._planner.plan_pair_runs(
+                x_hat, P, R_WB, history, filled, R_previous, has_previous, linear
+            )
         )
-        value.set_value(self._planner.plan(x_hat, step.P_next, step.R_next, history, R_WB, linear))
 
     def _calc_rate(self, context: Context, output: BasicVector) -> None:
-        step: PlanStep = self._step.Eval(context)
-        output.set_value(step.rotation_vector / self._time_step)
+        step = self.plans(context)[0]
+        output.set_value((step.rotation_vector / self._time_step).ravel())
 
     def _calc_plan(self, context: Context, output: BasicVector) -> None:
-        R_next = self._step.Eval(context).R_next
-        R_after = self._next_step.Eval(context).R_next
-        output.set_value(np.concatenate([R_next.ravel(), R_after.ravel()]))
+        B = self.batch_size
+        step, following = self.plans(context)
+        plan = np.concatenate([step.R_next.reshape(B, 9), following.R_next.reshape(B, 9)], 1)
+        output.set_value(plan.ravel())
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        state = context.get_discrete_state(self._history_index).get_value()
-        history = np.concatenate([state[3:-1], R_WB @ self._planner.baseline_B])
-        filled = min(int(state[-1]) + 1, self._history)
-        discrete_state.set_value(self._history_index, np.append(history, filled))
-        discrete_state.set_value(self._previous_index, np.append(R_WB.ravel(), 1.0))
-        P = self._covariance_port.Eval(context).reshape(6, 6)
-        discrete_state.set_value(
-            self._handed_over_index, [0.0 if self._linear_start(context, P) else 1.0]
-        )
+        B = self.batch_size
+        R_WB, _, P = self._inputs(context)
+        state = per_run(context.get_discrete_state(self._history_index).get_value(), B)
+        filled = np.minimum(state[:, -1:] + 1.0, self._history)
+        history = np.concatenate([state[:, 3:-1], self._baselines(R_WB), filled], axis=1)
+        discrete_state.set_value(self._history_index, history.ravel())
+        previous = np.concatenate([R_WB.reshape(B, 9), np.ones((B, 1))], axis=1)
+        discrete_state.set_value(self._previous_index, previous.ravel())
+        discrete_state.set_value(self._handed_over_index, 1.0 - self._linear_start(context, P))
 
 
 def information_planner(

@@ -5,7 +5,8 @@ from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Context
 
 from drake_uuv.attitude.base import AttitudeGenerator, AttitudeSetting
-from drake_uuv.models.so3 import matrix_from_quaternion, norm
+from drake_uuv.models.attitude_plans import quaternion_attitudes
+from drake_uuv.primitives.batch import per_run
 from drake_uuv.primitives.random_input import declare_random_input
 from drake_uuv.scenario.attitude import RandomAttitude
 
@@ -31,16 +32,22 @@ class RandomAttitudeGenerator(AttitudeGenerator):
     - ``rotation_noise`` (4, random, standard normal): the quaternion before normalising.
     - The other ports as in :class:`~drake_uuv.attitude.base.AttitudeGenerator`.
 
+    Sizes are per run: with ``batch_size`` B every port holds B runs row-major, each run's
+    rotation from its own noise.
+
     ``config`` (:class:`~drake_uuv.scenario.RandomAttitude`) gives the rate limit.
     """
 
-    def __init__(self, config: RandomAttitude, *, setting: AttitudeSetting) -> None:
-        super().__init__(setting=setting, max_angular_rate=config.max_angular_rate)
+    def __init__(
+        self, config: RandomAttitude, *, setting: AttitudeSetting, batch_size: int = 1
+    ) -> None:
+        super().__init__(
+            setting=setting, max_angular_rate=config.max_angular_rate, batch_size=batch_size
+        )
         self._noise_port = declare_random_input(
-            self, "rotation_noise", 4, RandomDistribution.kGaussian
+            self, "rotation_noise", 4, RandomDistribution.kGaussian, batch_size=self.batch_size
         )
         self._declare_outputs()
 
-    def desired_attitude(self, context: Context) -> np.ndarray | None:
-        quaternion = self._noise_port.Eval(context)
-        return matrix_from_quaternion(quaternion / norm(quaternion))
+    def desired_attitudes(self, context: Context) -> np.ndarray | None:
+        return quaternion_attitudes(per_run(self._noise_port.Eval(context), self.batch_size))

@@ -27,26 +27,34 @@ class TrajectoryAttitudeGenerator(AttitudeGenerator):
         - u2_W
         - R_WB_plan
 
-    Ports as in :class:`~drake_uuv.attitude.base.AttitudeGenerator`. ``config``
+    Ports as in :class:`~drake_uuv.attitude.base.AttitudeGenerator` (sizes per run; with
+    ``batch_size`` B every port holds B runs row-major). ``R̄(k)`` depends on k alone: it is
+    computed once per step and every run turns towards it from its own attitude. ``config``
     (:class:`~drake_uuv.scenario.TrajectoryAttitude`) gives ρ, the h amplitude and frequency
     and the rate limit; the ``setting`` the period and the baseline b.
     """
 
-    def __init__(self, config: TrajectoryAttitude, *, setting: AttitudeSetting) -> None:
-        super().__init__(setting=setting, max_angular_rate=config.max_angular_rate)
+    def __init__(
+        self, config: TrajectoryAttitude, *, setting: AttitudeSetting, batch_size: int = 1
+    ) -> None:
+        super().__init__(
+            setting=setting, max_angular_rate=config.max_angular_rate, batch_size=batch_size
+        )
         b = setting.baseline_B
         rho, h_amplitude, h_frequency = config.rho, config.h_amplitude, config.h_frequency
 
-        # R̄(k) depends on k alone: every run of a Monte Carlo study reuses it.
+        # R̄(k) depends on k alone: every run of the batch (and of a study) reuses it.
         @functools.lru_cache(maxsize=4096)
         def attitude(k: int) -> np.ndarray:
-            return trajectory_attitude(k, b, rho, h_amplitude, h_frequency)
+            # Shared by the cache: only read (writable all the same, so that the compiled
+            # kernels see the same array type as Algorithm 1's and compile once).
+            return trajectory_attitude(k, b, rho, h_amplitude, h_frequency).reshape(1, 3, 3)
 
         self._attitude = attitude
         self._declare_outputs()
 
-    def desired_attitude(self, context: Context) -> np.ndarray | None:
+    def desired_attitudes(self, context: Context) -> np.ndarray | None:
         return self._attitude(self.step_index(context))
 
-    def next_desired_attitude(self, context: Context) -> np.ndarray | None:
+    def next_desired_attitudes(self, context: Context) -> np.ndarray | None:
         return self._attitude(self.step_index(context) + 1)
