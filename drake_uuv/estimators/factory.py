@@ -9,7 +9,8 @@ from drake_uuv.models.timing import PingSchedule
 from drake_uuv.primitives.variant_table import variant_system
 from drake_uuv.scenario import Ekf, Iekf, PaperKf, ParticleFilter, Scenario, Ukf
 
-#: Variant dataclass → the class of its system, built as ``cls(config, setting=...)``.
+#: Variant dataclass → the class of its system, built as
+#: ``cls(config, setting=..., batch_size=B)``.
 ESTIMATORS: dict[type, type[RelativeStateEstimator]] = {
     PaperKf: RangeDifferenceKalmanFilter,
     Ekf: RangeFilter,
@@ -37,7 +38,7 @@ def estimator_setting(scenario: Scenario) -> EstimatorSetting:
     )
 
 
-def make_estimator(scenario: Scenario) -> RelativeStateEstimator:
-    """The estimator of ``scenario.estimator``'s variant."""
+def make_estimator(scenario: Scenario, *, batch_size: int = 1) -> RelativeStateEstimator:
+    """The estimator of ``scenario.estimator``'s variant, stepping ``batch_size`` runs."""
     cls = variant_system(ESTIMATORS, scenario.estimator, "estimator")
-    return cls(scenario.estimator, setting=estimator_setting(scenario))
+    return cls(scenario.estimator, setting=estimator_setting(scenario), batch_size=batch_size)

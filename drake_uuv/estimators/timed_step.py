@@ -1,4 +1,5 @@
-"""One step of a Gaussian estimator with its ranges at their own ping times.
+"""One step of a Gaussian estimator with its ranges at their own ping times (one run: late
+ranges step one run at a time for now; the estimator's hooks take it as a batch of one).
 
 The step's augmented state ``z = [x_k, ū_k]`` (:mod:`drake_uuv.models.timing`) takes each
 instant's ranges through the estimator's own update hook on ``y = x(τ)`` (so the paper's KF,
@@ -93,7 +94,7 @@ def gaussian_step(
         return G, c, step.attitude(tau, t) @ host.baseline
 
     outcome = StepOutcome(x, P)
-    paired = host.needs_both_ranges(context)
+    paired = bool(np.any(host.needs_both_ranges(context)))
     for instant in instants(step, paired) if with_ranges else []:
         G, c, q_s = at(instant.tau)
         if paired and len(instant.sonars) == 2 and step.tau[0] != step.tau[1]:
@@ -103,25 +104,37 @@ def gaussian_step(
             instant.extra[early] += variance
         y = G @ z + c
         P_y = G @ P_z @ G.T
-        ranges = instant_ranges(host, instant, q_s, step)
+        ranges = batch_of_one(instant_ranges(host, instant, q_s, step))
         update: MeasurementUpdate | None = host.measurement_update(
-            context, Estimate(y, P_y), ranges
+            context, Estimate(y[np.newaxis], P_y[np.newaxis]), ranges
         )
-        if update is None:
+        if update is None or not update.updated[0]:
             continue
+        nis, dof = float(update.nis[0]), int(update.dof[0])
+        gamma = None if update.gamma is None else float(update.gamma[0])
         new = bool(np.any(step.new[instant.sonars]))
-        if update.nis > host.gate_threshold(update.dof):
-            outcome.updates.append(InstantOutcome(GATED, update.nis, update.dof, new))
+        if nis > host.gate_threshold(dof):
+            outcome.updates.append(InstantOutcome(GATED, nis, dof, new))
             continue
-        z, P_z = update_through(z, P_z, G, y, update.x, update.P)
-        outcome.updates.append(
-            InstantOutcome(VALID, update.nis, update.dof, new, q_s, update.gamma)
-        )
+        z, P_z = update_through(z, P_z, G, y, update.x[0], update.P[0])
+        outcome.updates.append(InstantOutcome(VALID, nis, dof, new, q_s, gamma))
     G, B = transition(t)
     outcome.x = G @ z + B @ a
     outcome.P = G @ P_z @ G.T
     outcome.P = 0.5 * (outcome.P + outcome.P.T)
     return outcome
+
+
+def batch_of_one(ranges: Ranges) -> Ranges:
+    """One instant's ranges (without a run axis) as a batch of one run."""
+
+    def one(value: np.ndarray | None) -> np.ndarray | None:
+        return None if value is None else np.asarray(value)[np.newaxis]
+
+    return Ranges(
+        one(ranges.samples), one(ranges.z), one(ranges.valid), one(ranges.status),
+        one(ranges.q_s), one(ranges.attitude_covariance), one(ranges.extra_variance),
+    )  # fmt: skip
 
 
 def instant_ranges(host, instant: _Instant, q_s: np.ndarray, step: StepRanges) -> Ranges:
