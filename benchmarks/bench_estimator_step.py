@@ -25,6 +25,15 @@ VARIANTS = {
     ],
     "ukf": ["estimator=!Ukf", "estimator.handover=threshold", "estimator.linear_start_max_steps=0"],
     "ekf-linear": ["estimator=!Ekf", "estimator.particle_bridge=false"],
+    # late ranges: both sonars' ranges two ticks after their pings
+    "kf-late": ["sonar.ping_offsets=[0.1, 0.3]", "sonar.latency=0.6"],
+    "ekf-late": [
+        "estimator=!Ekf",
+        "estimator.handover=threshold",
+        "estimator.linear_start_max_steps=0",
+        "sonar.ping_offsets=[0.1, 0.3]",
+        "sonar.latency=0.6",
+    ],
 }
 
 
@@ -50,6 +59,9 @@ def step_time(name: str, batch_size: int, repeats: int = 300) -> float:
     fixed = {"sonar_status": np.zeros(2 * B), "R_WB_nav": np.tile(np.eye(3).ravel(), B)}
     if system.HasInputPort("u1_W"):
         fixed["u1_W"] = np.zeros(3 * B)
+    if system.HasInputPort("ping_time"):  # this tick's arrivals: the pings of two ticks ago
+        context.SetTime(10 * 0.5)
+        fixed["ping_time"] = np.tile([4 * 0.5 + 0.1, 4 * 0.5 + 0.3], B)
     for port, value in fixed.items():
         system.GetInputPort(port).FixValue(context, value)
     port = system.GetInputPort("range_samples")

@@ -31,7 +31,7 @@ from drake_uuv.estimators.contract import (
 )
 from drake_uuv.estimators.error_model import ErrorModel, ideal_model
 from drake_uuv.estimators.ping_window import PingWindow
-from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
+from drake_uuv.estimators.timed_step import NO_UPDATE, StepOutcome, gaussian_step
 from drake_uuv.estimators.vehicle_motion import VEHICLE_MOTIONS
 from drake_uuv.models.filter_runs import predict_runs
 from drake_uuv.models.measurement import GATED, NO_ARRIVAL, VALID
@@ -78,7 +78,7 @@ class RelativeStateEstimator(LeafSystem):
     (a per-run size n is B·n entries, run i's at ``[i·n, (i + 1)·n)``), and every accessor
     and hook takes and gives arrays with a leading run axis (:mod:`.contract`). A run's
     phase of the computation (updated, gated, only predicted) is a mask, never a branch for
-    the batch. Late ranges (a ping schedule with a window) step one run at a time for now.
+    the batch.
 
     Ports (declared here, sizes per run; a variant may declare more inputs, e.g. random ones,
     which the filtered estimate must then not depend on):
@@ -162,11 +162,6 @@ class RelativeStateEstimator(LeafSystem):
         )
         self._window = None
         if not self._error_model.schedule.immediate:
-            if B != 1:
-                raise ValueError(
-                    "batch_size: late ranges (sonar ping offsets or latency) step one run at "
-                    f"a time for now, got {B}"
-                )
             self._window = PingWindow(
                 self, self._error_model.schedule, self._f, self._attitude_port,
                 self.vehicle_motion.state_ports or [self.vehicle_motion.acceleration_port],
@@ -243,8 +238,8 @@ class RelativeStateEstimator(LeafSystem):
         return False
 
     def step_belief(self, context: Context, x: np.ndarray, P: np.ndarray, step) -> StepOutcome:
-        """The belief ``N(x, P)`` of the run at a window step's tick (stored frame), stepped
-        through the step's arrived ranges at their ping times to the next tick
+        """The beliefs ``N(x, P)`` ((B, 6), (B, 6, 6)) at a window step's tick (stored frame),
+        stepped through the step's arrived ranges at their ping times to the next tick
         (:func:`~drake_uuv.estimators.timed_step.gaussian_step`)."""
         return gaussian_step(self, context, x, P, step)
 
@@ -290,7 +285,7 @@ class RelativeStateEstimator(LeafSystem):
         arrived by now."""
         if self._window is not None:
             x, P, _ = self._stepped.Eval(context)
-            return Estimate(self.vehicle_motion.prior(context, x[np.newaxis]), P[np.newaxis])
+            return Estimate(self.vehicle_motion.prior(context, x), P)
         anchor = self.anchor(context)
         return Estimate(self.vehicle_motion.prior(context, anchor.x), anchor.P)
 
@@ -337,8 +332,8 @@ class RelativeStateEstimator(LeafSystem):
         samples = per_run(self._samples_port.Eval(context), B, 2, f)
         status = per_run(self._status_port.Eval(context), B)
         if self._window is not None:
-            _, current = self._window.steps(context, samples[0], status[0])
-            samples = np.where(current[:, np.newaxis], samples, np.nan)
+            _, current = self._window.steps(context, samples, status)
+            samples = np.where(current[:, :, np.newaxis], samples, np.nan)
             status = np.where(current, status, NO_ARRIVAL)
         valid = (status == VALID) & np.isfinite(samples).all(axis=2)
         R_WB = per_run(self._attitude_port.Eval(context), B, 3, 3)
@@ -413,6 +408,10 @@ class RelativeStateEstimator(LeafSystem):
             *(self._window.input_ports if self._window is not None else []),
         ]  # fmt: skip
         return self._tickets(ports) | {self.xd_ticket()}
+
+    def gate_thresholds(self, dof: np.ndarray) -> np.ndarray:
+        """Each run's gate (B) for its update's innovation dimension ``dof`` (B; 0: none)."""
+        return self._gate_table[dof]
 
     def gate_threshold(self, dof: int) -> float:
         """The NIS above which an update is rejected (``inf`` without a gate)."""
@@ -491,28 +490,37 @@ class RelativeStateEstimator(LeafSystem):
     def _with_window_updates(
         self, context: Context, estimate: FilteredEstimate, update: MeasurementUpdate | None
     ) -> None:
-        """Status and NIS of a tick with late ranges (one run): of the ranges that arrived at
+        """Status and NIS of each run at a tick with late ranges: of the ranges that arrived at
         it (the window's instants that hold one, and this tick's own)."""
-        updated_now = update is not None and bool(update.updated[0])
+        B = self.batch_size
+        updated_now = np.zeros(B, dtype=bool) if update is None else update.updated
         _, _, outcomes = self._stepped.Eval(context)
-        news = [u for o in outcomes for u in o.updates if u.new]
-        applied = [u.nis for u in news if u.status == VALID]
-        if estimate.status[0] == VALID and updated_now:
-            applied.append(float(estimate.nis[0]))
-        if applied:
-            estimate.status[0], estimate.nis[0] = VALID, float(sum(applied))
-        elif news:
-            estimate.status[0], estimate.nis[0] = GATED, float(sum(u.nis for u in news))
-        elif estimate.status[0] == VALID and not updated_now:
-            estimate.status[0] = self.arrival_status(context)
+        applied_nis, applied = np.zeros(B), np.zeros(B, dtype=bool)
+        news_nis, news = np.zeros(B), np.zeros(B, dtype=bool)
+        for u in (u for o in outcomes for u in o.updates):
+            present = u.new & (u.status != NO_UPDATE)
+            valid = present & (u.status == VALID)
+            applied_nis = applied_nis + np.where(valid, u.nis, 0.0)
+            applied |= valid
+            news_nis = news_nis + np.where(present, u.nis, 0.0)
+            news |= present
+        now = (estimate.status == VALID) & updated_now
+        applied_nis = applied_nis + np.where(now, estimate.nis, 0.0)
+        applied |= now
+        waiting = (estimate.status == VALID) & ~updated_now
+        status = np.where(waiting, self.arrival_status(context), estimate.status)
+        status = np.where(news, float(GATED), status)
+        estimate.status = np.where(applied, float(VALID), status)
+        nis = np.where(news, news_nis, estimate.nis)
+        estimate.nis = np.where(applied, applied_nis, nis)
 
-    def arrival_status(self, context: Context) -> int:
-        """The status of a tick without an update (one run): the first code of the sonars
+    def arrival_status(self, context: Context) -> np.ndarray:
+        """Each run's status of a tick without an update (B): the first code of the sonars
         whose range arrived unusable, or NO_ARRIVAL when none arrived."""
-        status = self._status_port.Eval(context)
-        arrived = status[status != NO_ARRIVAL]
-        invalid = arrived[arrived != VALID]
-        return int(invalid[0]) if invalid.size else NO_ARRIVAL
+        status = per_run(self._status_port.Eval(context), self.batch_size)
+        invalid = (status != NO_ARRIVAL) & (status != VALID)
+        later = np.where(invalid[:, 1], status[:, 1], float(NO_ARRIVAL))
+        return np.where(invalid[:, 0], status[:, 0], later)
 
     def window_outcomes(self, context: Context) -> list[StepOutcome]:
         """The window steps' outcomes at this tick (empty with the paper's timing)."""
@@ -527,7 +535,7 @@ class RelativeStateEstimator(LeafSystem):
         return self.DeclareCacheEntry(
             description,
             ValueProducer(
-                allocate=AbstractValue.Make((np.zeros(6), np.eye(6), [])).Clone,
+                allocate=AbstractValue.Make((np.zeros(0), np.zeros(0), [])).Clone,
                 calc=lambda context, value: value.set_value(
                     self._step_window(context, include_now)
                 ),
@@ -536,17 +544,16 @@ class RelativeStateEstimator(LeafSystem):
         )
 
     def _step_window(self, context: Context, include_now: bool) -> tuple:
-        """``(x, P, outcomes)`` of the run: the anchor stepped through the window (stored
-        frame)."""
-        f = self._f
+        """``(x, P, outcomes)``: the anchors stepped through the window (stored frame)."""
+        B, f = self.batch_size, self._f
         if include_now:
-            samples = self._samples_port.Eval(context).reshape(2, f)
-            status = self._status_port.Eval(context)
+            samples = per_run(self._samples_port.Eval(context), B, 2, f)
+            status = per_run(self._status_port.Eval(context), B)
         else:
-            samples, status = np.full((2, f), np.nan), np.full(2, float(NO_ARRIVAL))
+            samples, status = np.full((B, 2, f), np.nan), np.full((B, 2), float(NO_ARRIVAL))
         steps, _ = self._window.steps(context, samples, status)
         anchor = self.anchor(context)
-        x, P = anchor.x[0], anchor.P[0]
+        x, P = anchor.x, anchor.P
         outcomes = []
         for step in steps:
             outcome = self.step_belief(context, x, P, step)
@@ -557,15 +564,17 @@ class RelativeStateEstimator(LeafSystem):
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         self.advance(context, self._filtered.Eval(context), discrete_state)
         if self._window is not None:
-            samples = self._samples_port.Eval(context).reshape(2, self._f)
-            self._window.record(context, discrete_state, samples, self._status_port.Eval(context))
+            B = self.batch_size
+            samples = per_run(self._samples_port.Eval(context), B, 2, self._f)
+            status = per_run(self._status_port.Eval(context), B)
+            self._window.record(context, discrete_state, samples, status)
 
     def _calc_prior(self, context: Context, output: BasicVector) -> None:
         output.set_value(self.prior(context).x.ravel())
 
     def _calc_prior_before(self, context: Context, output: BasicVector) -> None:
         x, _, _ = self._stepped_before.Eval(context)
-        output.set_value(self.vehicle_motion.prior(context, x[np.newaxis]).ravel())
+        output.set_value(self.vehicle_motion.prior(context, x).ravel())
 
     def _calc_P_prior_before(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._stepped_before.Eval(context)[1].ravel())

@@ -218,7 +218,7 @@ class RangeFilter(RelativeStateEstimator):
         if self.window is None or self.phase(context) is not Phase.PARTICLE:
             return None
         x, P, nis, _ = self._cloud.posterior(context)
-        status = VALID if math.isfinite(nis) else self.arrival_status(context)
+        status = VALID if math.isfinite(nis) else self.arrival_status(context)[0]
         return FilteredEstimate(
             x[np.newaxis], P[np.newaxis], np.array([float(status)]), np.array([nis])
         )
@@ -226,18 +226,16 @@ class RangeFilter(RelativeStateEstimator):
     def step_belief(self, context: Context, x: np.ndarray, P: np.ndarray, step) -> StepOutcome:
         """In the particle phase the particles take the ranges: the Gaussian summary only
         predicts (it serves the prior outputs)."""
-        particles = self.phase(context) is Phase.PARTICLE
-        return gaussian_step(self, context, x, P, step, with_ranges=not particles)
+        return gaussian_step(self, context, x, P, step, self.phases(context) != _PARTICLE)
 
     def _linear_updates(
         self, context: Context, filtered: FilteredEstimate, ranges: Ranges, linear: np.ndarray
     ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """This tick's applied linear updates as ``(q_s (B, 3), Γ (B), runs (B))``."""
-        if self.window is not None:  # one run
+        if self.window is not None:
             return [
-                (u.q_s[np.newaxis], np.array([u.gamma]), np.ones(1, dtype=bool))
-                for o in self.window_outcomes(context) for u in o.updates
-                if u.new and u.status == VALID and u.gamma is not None
+                (u.q_s, u.gamma, u.new & (u.status == VALID) & linear)
+                for o in self.window_outcomes(context) for u in o.updates if u.gamma is not None
             ]  # fmt: skip
         runs = linear & filtered.applied & ranges.valid[:, 0] & ranges.valid[:, 1]
         if not runs.any():
@@ -331,6 +329,11 @@ class _RunOfOne:
     def __setattr__(self, name: str, value) -> None:
         setattr(self._host, name, value)
 
+    @property
+    def window(self):
+        window = self._host.window
+        return None if window is None else _WindowOfOne(window)
+
     def ranges(self, context: Context) -> Ranges:
         return self._host.ranges(context).run(0)
 
@@ -358,3 +361,19 @@ class _MotionOfOne:
 
     def acceleration(self, context: Context) -> np.ndarray:
         return self._motion.acceleration(context)[0]
+
+
+class _WindowOfOne:
+    """The ping window's steps of run 0, without the run axis (the particle cloud's view)."""
+
+    def __init__(self, window) -> None:
+        self._window = window
+
+    def __getattr__(self, name: str):
+        return getattr(self._window, name)
+
+    def steps(self, context: Context, samples: np.ndarray, status: np.ndarray):
+        steps, current = self._window.steps(
+            context, samples[np.newaxis], np.asarray(status)[np.newaxis]
+        )
+        return [step.run(0) for step in steps], current[0]

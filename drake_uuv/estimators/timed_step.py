@@ -1,11 +1,16 @@
-"""One step of a Gaussian estimator with its ranges at their own ping times (one run: late
-ranges step one run at a time for now; the estimator's hooks take it as a batch of one).
+"""One step of a Gaussian estimator with its ranges at their own ping times, for a batch of
+runs.
 
 The step's augmented state ``z = [x_k, ū_k]`` (:mod:`drake_uuv.models.timing`) takes each
 instant's ranges through the estimator's own update hook on ``y = x(τ)`` (so the paper's KF,
 the EKF, the IEKF and the UKF each keep their update), conditioned back onto ``z``; the step
 ends at ``x_{k+1} = G(t) z + B(t) a_k``. An estimator that needs both ranges at one instant
 (the paper's KF, a linear start) gets the earlier range carried to the later ping time.
+
+Over a batch each run's ranges fall in at most two instants of the step, its earlier and its
+later ping time: the batch takes its runs' earlier instants at once, then their later ones
+(each run at its own τ; a run without a range at an instant is left as it is, by a mask).
+:func:`instants` and :func:`instant_ranges` are one run's, for the particle cloud.
 """
 
 from dataclasses import dataclass, field
@@ -13,27 +18,33 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_uuv.estimators.contract import Estimate, MeasurementUpdate, Ranges
-from drake_uuv.estimators.ping_window import StepRanges
+from drake_uuv.estimators.ping_window import StepBatch, StepRanges
+from drake_uuv.models.filter_runs import update_through_runs
 from drake_uuv.models.measurement import GATED, NO_ARRIVAL, VALID
-from drake_uuv.models.timing import augment, carried_range, transition, update_through
+from drake_uuv.models.timing import carried_range_runs, transition, transition_runs
+
+#: An instant's status of a run without a range there.
+NO_UPDATE = -1.0
 
 
 @dataclass
 class InstantOutcome:
-    """An instant's update: its status (VALID or GATED), NIS and innovation dimension, and
-    whether it holds a range that arrived at this tick."""
+    """An instant's updates of each run: status (B; VALID, GATED or :data:`NO_UPDATE`), NIS
+    and innovation dimension (B), whether it holds a range that arrived at this tick (B), the
+    world baseline there (B, 3) and, for a linear update on the paper's Y, its Γ (B)."""
 
-    status: int
-    nis: float
-    dof: int
-    new: bool
+    status: np.ndarray
+    nis: np.ndarray
+    dof: np.ndarray
+    new: np.ndarray
     q_s: np.ndarray | None = None
-    gamma: float | None = None
+    gamma: np.ndarray | None = None
 
 
 @dataclass
 class StepOutcome:
-    """The belief at the step's end (stored frame) and its instants' updates."""
+    """The beliefs at the step's end (stored frame; (B, 6), (B, 6, 6)) and its instants'
+    updates."""
 
     x: np.ndarray
     P: np.ndarray
@@ -49,8 +60,8 @@ class _Instant:
 
 
 def instants(step: StepRanges, paired: bool) -> list[_Instant]:
-    """The step's usable ranges grouped by ping time, earliest first (``paired``: one instant
-    at the later time holding both, when both returned; none with one)."""
+    """One run's usable ranges of ``step`` grouped by ping time, earliest first (``paired``:
+    one instant at the later time holding both, when both returned; none with one)."""
     valid = [i for i in range(2) if step.valid(i)]
     if paired and len(valid) < 2:
         return []
@@ -67,62 +78,124 @@ def instants(step: StepRanges, paired: bool) -> list[_Instant]:
     return out
 
 
+def _instant_masks(
+    step: StepBatch, paired: np.ndarray
+) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """Each run's earlier and later instant, ``(use (B, 2), τ (B))`` each, and the runs whose
+    earlier range is carried to the later instant (paired, both returned, τ differ)."""
+    valid = step.valid()
+    both = valid[:, 0] & valid[:, 1]
+    tau = step.tau
+    differ = both & (tau[:, 0] != tau[:, 1])
+    early = np.where(tau[:, 0] < tau[:, 1], 0, 1)
+    one_hot = np.stack([early == 0, early == 1], axis=1)
+    use_early = (differ & ~paired)[:, np.newaxis] & one_hot
+    use_late = np.where(paired[:, np.newaxis], both[:, np.newaxis], valid & ~use_early)
+    tau_early = np.where(early == 0, tau[:, 0], tau[:, 1])
+    tau_late = np.where(use_late, tau, -np.inf).max(axis=1)
+    tau_late = np.where(np.isfinite(tau_late), tau_late, 0.0)
+    return (use_early, tau_early), (use_late, tau_late), paired & differ
+
+
 def gaussian_step(
-    host, context, x: np.ndarray, P: np.ndarray, step: StepRanges, with_ranges: bool = True
+    host,
+    context,
+    x: np.ndarray,
+    P: np.ndarray,
+    step: StepBatch,
+    with_ranges: np.ndarray | bool = True,
 ) -> StepOutcome:
-    """Steps the Gaussian belief ``N(x, P)`` at ``t_k`` (stored frame) through ``step`` (its
-    ranges left out without ``with_ranges``: the prediction alone)."""
+    """Steps the Gaussian beliefs ``N(x, P)`` ((B, 6), (B, 6, 6)) at ``t_k`` (stored frame)
+    through ``step`` (its ranges left out of the runs without ``with_ranges`` (B): the
+    prediction alone)."""
     t = host.time_step
     model = host.error_model
     _, _, W = host.model
+    B = len(x)
     navigated = model.navigated_motion
-    a = np.zeros(3) if navigated else step.acceleration
+    a = np.zeros((B, 3)) if navigated else step.acceleration
     sigma_theta = model.attitude_covariance(step.R_start)
     extra_W = model.acceleration_covariance(a, sigma_theta)
     P = P.copy()
-    velocity = model.velocity_covariance(step.start[3:], sigma_theta)
+    velocity = model.velocity_covariance(step.start[:, 3:], sigma_theta)
     if velocity is not None:  # the dead-reckoned position's walk over the step
-        P[:3, :3] += (t * t) * velocity
-    z, P_z = augment(x, P, W if extra_W is None else W + extra_W)
+        P[:, :3, :3] += (t * t) * velocity
+    z = np.concatenate([x, np.zeros((B, 3))], axis=1)
+    P_z = np.zeros((B, 9, 9))
+    P_z[:, :6, :6] = P
+    P_z[:, 6:, 6:] = W if extra_W is None else W + extra_W
 
-    def at(tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(G, c, q_s)``: the relative state at τ is ``G z + c``."""
-        G, B = transition(tau)
-        c = B @ a
+    def at(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(G, c, q_s)``: the relative states at τ (B) are ``G z + c``."""
+        G, B_tau = transition_runs(tau)
+        c = (B_tau @ a[:, :, np.newaxis])[:, :, 0]
         if navigated:
             c = c + step.vehicle(tau, t)
-        return G, c, step.attitude(tau, t) @ host.baseline
+        q_s = (step.attitude(tau, t) * host.baseline).sum(axis=2)
+        return G, c, q_s
 
     outcome = StepOutcome(x, P)
-    paired = bool(np.any(host.needs_both_ranges(context)))
-    for instant in instants(step, paired) if with_ranges else []:
-        G, c, q_s = at(instant.tau)
-        if paired and len(instant.sonars) == 2 and step.tau[0] != step.tau[1]:
-            early = int(np.argmin(step.tau))
-            shift, variance = carried_range(z, P_z, early, at(float(step.tau[early])), (G, c, q_s))
-            instant.samples[early] += shift
-            instant.extra[early] += variance
-        y = G @ z + c
-        P_y = G @ P_z @ G.T
-        ranges = batch_of_one(instant_ranges(host, instant, q_s, step))
+    paired = np.broadcast_to(host.needs_both_ranges(context), (B,))
+    ranges_on = np.broadcast_to(with_ranges, (B,))
+    first, second, carried = _instant_masks(step, paired)
+    f = step.samples.shape[2]
+    for index, (use, tau) in enumerate((first, second)):
+        use = use & ranges_on[:, np.newaxis]
+        if not use.any():  # no run has a range at this instant (the same numbers)
+            continue
+        G, c, q_s = at(tau)
+        samples = np.where(use[:, :, np.newaxis], step.samples, np.nan)
+        extra = np.zeros((B, 2))
+        carry = carried & use.all(axis=1)
+        if index == 1 and carry.any():
+            early = np.where(step.tau[:, 0] < step.tau[:, 1], 0, 1)
+            shift, variance = carried_range_runs(z, P_z, early, at(step.tau[np.arange(B), early]),
+                                                 (G, c, q_s))  # fmt: skip
+            rows = np.flatnonzero(carry)
+            samples[rows, early[rows]] += shift[rows, np.newaxis]
+            extra[rows, early[rows]] += variance[rows]
+        y = (G @ z[:, :, np.newaxis])[:, :, 0] + c
+        P_y = G @ P_z @ np.swapaxes(G, 1, 2)
+        ranges = _instant_ranges_runs(host, samples, use, q_s, step.attitude(tau, t), extra, f)
         update: MeasurementUpdate | None = host.measurement_update(
-            context, Estimate(y[np.newaxis], P_y[np.newaxis]), ranges
+            context, Estimate(y, P_y), ranges
         )
-        if update is None or not update.updated[0]:
+        if update is None:
             continue
-        nis, dof = float(update.nis[0]), int(update.dof[0])
-        gamma = None if update.gamma is None else float(update.gamma[0])
-        new = bool(np.any(step.new[instant.sonars]))
-        if nis > host.gate_threshold(dof):
-            outcome.updates.append(InstantOutcome(GATED, nis, dof, new))
-            continue
-        z, P_z = update_through(z, P_z, G, y, update.x[0], update.P[0])
-        outcome.updates.append(InstantOutcome(VALID, nis, dof, new, q_s, gamma))
-    G, B = transition(t)
-    outcome.x = G @ z + B @ a
-    outcome.P = G @ P_z @ G.T
-    outcome.P = 0.5 * (outcome.P + outcome.P.T)
+        updated = update.updated & use.any(axis=1)
+        gated = updated & (update.nis > host.gate_thresholds(update.dof))
+        accept = updated & ~gated
+        z, P_z = update_through_runs(z, P_z, G, y, update.x, update.P, accept)
+        status = np.where(accept, float(VALID), np.where(gated, float(GATED), NO_UPDATE))
+        new = (step.new & use).any(axis=1)
+        outcome.updates.append(
+            InstantOutcome(status, update.nis, update.dof, new, q_s, update.gamma)
+        )
+    G, B_t = transition(t)
+    outcome.x = (G @ z[:, :, np.newaxis])[:, :, 0] + (B_t @ a[:, :, np.newaxis])[:, :, 0]
+    P_next = G @ P_z @ G.T
+    outcome.P = 0.5 * (P_next + np.swapaxes(P_next, 1, 2))
     return outcome
+
+
+def _instant_ranges_runs(
+    host,
+    samples: np.ndarray,
+    use: np.ndarray,
+    q_s: np.ndarray,
+    R_nav: np.ndarray,
+    extra: np.ndarray,
+    f: int,
+) -> Ranges:
+    """The ranges of the runs' instant (``samples`` NaN outside ``use``), with the error
+    model's noise."""
+    model = host.error_model
+    status = np.where(use, float(VALID), float(NO_ARRIVAL))
+    z = samples.sum(axis=2) / f
+    sound = model.range_variance(z)
+    if sound is not None:
+        extra = extra + sound
+    return Ranges(samples, z, use, status, q_s, model.attitude_covariance(R_nav), extra)
 
 
 def batch_of_one(ranges: Ranges) -> Ranges:

@@ -730,3 +730,97 @@ def range_update_runs(update: Callable) -> RangeUpdateRuns:
             beta=parameters.beta,
         )  # fmt: skip
     raise ValueError(f"range_update: no batched counterpart of {update!r}")
+
+
+# ----------------------------------------------------------- late ranges: a step's update
+
+
+@njit(cache=True, error_model="numpy")
+def _update_through(z, P_z, G, y_prior, y_post, P_y_post, mask, z_out, P_out):
+    PzG = np.empty((9, 6))
+    Py = np.empty((6, 6))
+    L = np.empty((6, 6))
+    K = np.empty((9, 6))
+    col, tmp, sol = np.empty(6), np.empty(6), np.empty(6)
+    T = np.empty((9, 9))
+    TP = np.empty((9, 9))
+    KP = np.empty((9, 6))
+    M = np.empty((9, 9))
+    for r in range(z.shape[0]):
+        if not mask[r]:
+            z_out[r] = z[r]
+            P_out[r] = P_z[r]
+            continue
+        for i in range(9):
+            for j in range(6):
+                s = 0.0
+                for k in range(9):
+                    s += P_z[r, i, k] * G[r, j, k]
+                PzG[i, j] = s
+        for i in range(6):
+            for j in range(6):
+                s = 0.0
+                for k in range(9):
+                    s += G[r, i, k] * PzG[k, j]
+                Py[i, j] = s
+        _cholesky6(Py, L)
+        for i in range(9):  # row i of K solves P_y kᵢ = (P_z Gᵀ)ᵢ (P_y symmetric)
+            for j in range(6):
+                col[j] = PzG[i, j]
+            _forward(L, col, tmp)
+            _backward(L, tmp, sol)
+            for j in range(6):
+                K[i, j] = sol[j]
+        for i in range(9):
+            s = z[r, i]
+            for j in range(6):
+                s += K[i, j] * (y_post[r, j] - y_prior[r, j])
+            z_out[r, i] = s
+        for i in range(9):
+            for j in range(9):
+                s = 1.0 if i == j else 0.0
+                for k in range(6):
+                    s -= K[i, k] * G[r, k, j]
+                T[i, j] = s
+        for i in range(9):
+            for j in range(9):
+                s = 0.0
+                for k in range(9):
+                    s += T[i, k] * P_z[r, k, j]
+                TP[i, j] = s
+            for j in range(6):
+                s = 0.0
+                for k in range(6):
+                    s += K[i, k] * P_y_post[r, k, j]
+                KP[i, j] = s
+        for i in range(9):
+            for j in range(9):
+                s = 0.0
+                for k in range(9):
+                    s += TP[i, k] * T[j, k]
+                for k in range(6):
+                    s += KP[i, k] * K[j, k]
+                M[i, j] = s
+        for i in range(9):
+            P_out[r, i, i] = M[i, i]
+            for j in range(i + 1, 9):
+                value = 0.5 * (M[i, j] + M[j, i])
+                P_out[r, i, j] = value
+                P_out[r, j, i] = value
+
+
+def update_through_runs(
+    z: np.ndarray,
+    P_z: np.ndarray,
+    G: np.ndarray,
+    y_prior: np.ndarray,
+    y_posterior: np.ndarray,
+    P_y_posterior: np.ndarray,
+    mask: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~drake_uuv.models.timing.update_through` of each run in ``mask``: ``z`` (B, 9),
+    ``P_z`` (B, 9, 9), ``G`` (B, 6, 9), ``y`` (B, 6), ``P_y⁺`` (B, 6, 6); the others keep
+    theirs."""
+    z_out, P_out = np.empty(z.shape), np.empty(P_z.shape)
+    _update_through(z, P_z, G, y_prior, y_posterior, P_y_posterior, mask, z_out, P_out)
+    return z_out, P_out

@@ -17,7 +17,7 @@ exactly quadratic over a step; there these are the interpolants of its states at
 
 import numpy as np
 
-from drake_uuv.models.so3 import exp_so3, log_so3
+from drake_uuv.models.so3 import exp_so3, exp_so3_runs, log_so3, log_so3_runs
 
 
 def hermite_weights(s: float) -> tuple[float, float, float, float]:
@@ -48,3 +48,10 @@ def interpolate_attitude(R0: np.ndarray, R1: np.ndarray, s: float) -> np.ndarray
     if s == 0.0:
         return R0
     return exp_so3(s * log_so3(R1 @ R0.T)) @ R0
+
+
+def interpolate_attitude_runs(R0: np.ndarray, R1: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """:func:`interpolate_attitude` of each run: ``R0``, ``R1`` (B, 3, 3), ``s`` (B)."""
+    s = np.asarray(s, dtype=float)
+    turn = exp_so3_runs(s[:, np.newaxis] * log_so3_runs(R1 @ np.swapaxes(R0, -1, -2))) @ R0
+    return np.where((s == 0.0)[:, np.newaxis, np.newaxis], R0, turn)

@@ -1,13 +1,21 @@
 """A batch of runs through one estimator is, bit for bit, each run alone: the paper's KF and
 the raw-range filters (EKF, IEKF, UKF) on random batches that mix their phases (linear start
-and Gaussian), gated and accepted updates, dropped ranges, and a run that failed (NaN)."""
+and Gaussian), gated and accepted updates, dropped ranges, late ranges at their ping times, and
+a run that failed (NaN)."""
 
 import numpy as np
 import pytest
 
 from drake_uuv.estimators import EstimatorSetting, RangeDifferenceKalmanFilter, RangeFilter
 from drake_uuv.models.handover import Phase
-from drake_uuv.models.measurement import DROPPED, OUT_OF_BEAM, VALID, range_measurement
+from drake_uuv.models.measurement import (
+    DROPPED,
+    NO_ARRIVAL,
+    OUT_OF_BEAM,
+    VALID,
+    range_measurement,
+)
+from drake_uuv.models.timing import PingSchedule
 from drake_uuv.scenario import Ekf, Iekf, NavigationErrors, PaperKf, Ukf
 from drake_uuv.testing import assert_batch_equals_runs, fixed_context
 from tests.conftest import ETA_UNEQUAL, T, W
@@ -147,3 +155,73 @@ def test_batch_size_is_checked_and_particles_take_one_run() -> None:
         maker("kf")(0)
     with pytest.raises(ValueError, match=r"^batch_size: a filter that may carry particles"):
         RangeFilter(Ekf(), setting=setting(False), batch_size=2)
+
+
+SCHEDULE = PingSchedule(T, (0.1, 0.3), 0.6)  # both ranges two ticks late: D = 2
+
+
+def timed_maker(kind: str, errors: bool = False, **fields):
+    config = KINDS[kind](gate_probability=0.99, **fields)
+    cls = RangeDifferenceKalmanFilter if kind == "kf" else RangeFilter
+    extra = dict(navigation_errors=ERRORS, sound_speed_error=0.004) if errors else {}
+    timed = EstimatorSetting(
+        time_step=T, acceleration_covariance=W, noise_variances=ETA_UNEQUAL,
+        samples_per_step=F, baseline_B=B_BODY, ping_schedule=SCHEDULE, **extra,
+    )  # fmt: skip
+
+    def make(batch_size: int):
+        return cls(config, setting=timed, batch_size=batch_size)
+
+    return make
+
+
+def random_timed_runs(make, B: int, seed: int, tick: int, *, navigated: bool = False):
+    """Random runs with late ranges: the window's stored ranges (arrived, dropped, not yet
+    arrived, at random ping offsets), attitudes and motion, and this tick's arrivals."""
+    rng = np.random.default_rng(seed)
+    inputs, states = random_runs(make, B, seed, navigated=navigated)
+    D = SCHEDULE.window
+    slot = 4 + 2 * F
+    slots = np.full((B, D, slot), np.nan)
+    attitudes = np.empty((B, D, 9))
+    for r in range(B):
+        for k in range(D):
+            R_WB = rotation(rng)
+            attitudes[r, k] = R_WB.ravel()
+            d = range_measurement(X_TRUE, R_WB @ B_BODY)
+            code = rng.choice([VALID, VALID, DROPPED, NO_ARRIVAL], size=2).astype(float)
+            slots[r, k, :2] = code
+            slots[r, k, 2:4] = rng.choice([0.1, 0.3, 0.3], size=2)
+            values = d[:, None] + 0.1 * rng.standard_normal((2, F))
+            values[code != VALID] = np.nan
+            slots[r, k, 4:] = values.ravel()
+    motion = rng.normal(size=(B, D, 6 if navigated else 3))
+    # This tick's arrivals: the ranges of step tick − 2, at their ping times (or none).
+    arrived = rng.random((B, 2)) < 0.8
+    ping = np.where(arrived, (tick - 2) * T + np.array([0.1, 0.3]), np.nan)
+    inputs["sonar_status"] = np.where(arrived, inputs["sonar_status"], float(NO_ARRIVAL))
+    inputs["ping_time"] = ping
+    window = [slots.reshape(B, -1), attitudes.reshape(B, -1), motion.reshape(B, -1)]
+    states = states[:2] + window + states[2:]
+    return inputs, states
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+@pytest.mark.parametrize("B", [1, 3])
+def test_with_late_ranges_a_batch_step_is_each_run_alone(kind: str, B: int) -> None:
+    fields = {} if kind == "kf" else NO_PARTICLES
+    make = timed_maker(kind, **fields)
+    for seed in range(2):
+        inputs, states = random_timed_runs(make, B, seed, tick=6)
+        assert_batch_equals_runs(make, inputs, states, time=6 * T)
+
+
+@pytest.mark.parametrize("kind", ["kf", "ukf"])
+def test_with_late_ranges_errors_navigation_and_a_failed_run(kind: str) -> None:
+    fields = dict(vehicle_motion="navigation", **({} if kind == "kf" else NO_PARTICLES))
+    make = timed_maker(kind, errors=True, **fields)
+    inputs, states = random_timed_runs(make, 4, 5, tick=7, navigated=True)
+    assert_batch_equals_runs(make, inputs, states, time=7 * T)
+    states[0][1] = np.nan  # run 1 failed
+    states[1][1] = np.nan
+    assert_batch_equals_runs(make, inputs, states, time=7 * T)
