@@ -61,7 +61,7 @@ def step_time(name: str, batch_size: int, repeats: int = 300) -> float:
         fixed["u1_W"] = np.zeros(3 * B)
     if system.HasInputPort("ping_time"):  # this tick's arrivals: the pings of two ticks ago
         context.SetTime(10 * 0.5)
-        fixed["ping_time"] = np.tile([4 * 0.5 + 0.1, 4 * 0.5 + 0.3], B)
+        fixed["ping_time"] = np.tile([8 * 0.5 + 0.1, 8 * 0.5 + 0.3], B)
     for port, value in fixed.items():
         system.GetInputPort(port).FixValue(context, value)
     port = system.GetInputPort("range_samples")

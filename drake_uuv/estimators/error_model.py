@@ -32,6 +32,7 @@ error) into the filter:
 arrive at a tick are taken as measured then, together. It shows what ignoring them costs.
 """
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,7 +68,7 @@ class ErrorModel:
         """Whether any navigation or sound-speed error is modelled (timing aside)."""
         return self.errors.any or self.sound_speed_error != 0.0
 
-    @property
+    @functools.cached_property
     def attitude_noise(self) -> bool:
         return bool(np.any(self.errors.attitude_noise > 0.0))
 

@@ -19,6 +19,7 @@ runs (a leading run axis; the state and ports B runs row-major).
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from pydrake.systems.framework import Context, DiscreteValues, InputPort, LeafSystem
 
 from drake_uuv.models.measurement import NO_ARRIVAL, VALID
@@ -178,41 +179,25 @@ class PingWindow:
         motion = per_run(state(self._motion_index).get_value(), B, D, self._motion_size)
         return slots, attitudes, motion
 
-    def _arrivals(
-        self, context: Context, status: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(arrived, step, τ)`` (B, 2 each) of the ranges arriving at this tick."""
-        ping_time = per_run(self._ping_time_port.Eval(context), self._B)
-        arrived = (status != NO_ARRIVAL) & np.isfinite(ping_time)
-        with np.errstate(invalid="ignore"):
-            step = np.floor(np.where(arrived, ping_time, 0.0) / self._t + _TOLERANCE)
-        tau = np.maximum(ping_time - step * self._t, 0.0)
-        return arrived, step.astype(np.intp), tau
-
-    def _fill(
+    def _take_arrivals(
         self,
+        context: Context,
         slots: np.ndarray,
         first: int,
-        arrivals: tuple[np.ndarray, np.ndarray, np.ndarray],
         samples: np.ndarray,
         status: np.ndarray,
-    ) -> np.ndarray:
-        """Marks which slot entries are new (B, D, 2), writing the arrivals into ``slots``
-        (B, D, slot; the first slot is step ``first``); arrivals of step j (no slot) are left
-        out."""
-        arrived, step, tau = arrivals
-        f = self._f
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Writes the ranges arriving at this tick into ``slots`` (B, D, slot; the first slot
+        is step ``first``; arrivals of later steps are left out) and returns which slot entries
+        are new (B, D, 2) and which arrivals are of the current step (B, 2)."""
+        ping_time = per_run(self._ping_time_port.Eval(context), self._B)
         new = np.zeros((self._B, self._D, 2), dtype=bool)
-        index = step - first
-        fits = arrived & (index >= 0) & (index < self._D)
-        for sonar in range(2):  # each sonar's runs at once
-            runs = np.flatnonzero(fits[:, sonar])
-            at = index[runs, sonar]
-            slots[runs, at, sonar] = status[runs, sonar]
-            slots[runs, at, 2 + sonar] = tau[runs, sonar]
-            slots[runs, at, 4 + sonar * f : 4 + (sonar + 1) * f] = samples[runs, sonar]
-            new[runs, at, sonar] = True
-        return new
+        current = np.zeros((self._B, 2), dtype=bool)
+        _arrive(
+            slots, first, self.tick(context), ping_time, status, samples, self._t, self._f,
+            new, current,
+        )  # fmt: skip
+        return new, current
 
     def steps(
         self, context: Context, samples: np.ndarray, status: np.ndarray
@@ -223,9 +208,7 @@ class PingWindow:
         j = self.tick(context)
         first = j - self._D
         slots, attitudes, motion = self._stored(context)
-        arrivals = self._arrivals(context, status)
-        new = self._fill(slots, first, arrivals, samples, status)
-        current = arrivals[0] & (arrivals[1] == j)
+        new, current = self._take_arrivals(context, slots, first, samples, status)
         R_now = per_run(self._attitude_port.Eval(context), self._B, 3, 3)
         X_now = self._navigated_state(context)
         zeros3, zeros6 = np.zeros((self._B, 3)), np.zeros((self._B, 6))
@@ -272,7 +255,7 @@ class PingWindow:
         slots = np.concatenate([slots[:, 1:], np.full((self._B, 1, self._slot), np.nan)], axis=1)
         slots[:, -1, :2] = NO_ARRIVAL
         slots[:, -1, 2:4] = 0.0
-        self._fill(slots, j + 1 - self._D, self._arrivals(context, status), samples, status)
+        self._take_arrivals(context, slots, j + 1 - self._D, samples, status)
         R_now = per_run(self._attitude_port.Eval(context), self._B, 3, 3)
         attitudes = np.concatenate([attitudes[:, 1:], R_now[:, np.newaxis]], axis=1)
         if self._navigated:
@@ -283,3 +266,24 @@ class PingWindow:
         discrete_state.set_value(self._slots_index, slots.ravel())
         discrete_state.set_value(self._attitudes_index, attitudes.ravel())
         discrete_state.set_value(self._motion_index, motion.ravel())
+
+
+@njit(cache=True, error_model="numpy")
+def _arrive(slots, first, tick, ping_time, status, samples, t, f, new, current):
+    """Each run's arrivals (status not NO_ARRIVAL, a finite ping time) into its slots: step
+    ``⌊ping_time / t⌋``, offset the rest."""
+    D = slots.shape[1]
+    for r in range(slots.shape[0]):
+        for sonar in range(2):
+            stamp = ping_time[r, sonar]
+            if status[r, sonar] == NO_ARRIVAL or not np.isfinite(stamp):
+                continue
+            step = np.floor(stamp / t + _TOLERANCE)
+            current[r, sonar] = step == tick
+            index = int(step) - first
+            if 0 <= index < D:
+                slots[r, index, sonar] = status[r, sonar]
+                slots[r, index, 2 + sonar] = max(stamp - step * t, 0.0)
+                for k in range(f):
+                    slots[r, index, 4 + sonar * f + k] = samples[r, sonar, k]
+                new[r, index, sonar] = True

@@ -13,9 +13,11 @@ later ping time: the batch takes its runs' earlier instants at once, then their 
 :func:`instants` and :func:`instant_ranges` are one run's, for the particle cloud.
 """
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from drake_uuv.estimators.contract import Estimate, MeasurementUpdate, Ranges
 from drake_uuv.estimators.ping_window import StepBatch, StepRanges
@@ -80,21 +82,46 @@ def instants(step: StepRanges, paired: bool) -> list[_Instant]:
 
 def _instant_masks(
     step: StepBatch, paired: np.ndarray
-) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], np.ndarray]:
-    """Each run's earlier and later instant, ``(use (B, 2), τ (B))`` each, and the runs whose
-    earlier range is carried to the later instant (paired, both returned, τ differ)."""
-    valid = step.valid()
-    both = valid[:, 0] & valid[:, 1]
-    tau = step.tau
-    differ = both & (tau[:, 0] != tau[:, 1])
-    early = np.where(tau[:, 0] < tau[:, 1], 0, 1)
-    one_hot = np.stack([early == 0, early == 1], axis=1)
-    use_early = (differ & ~paired)[:, np.newaxis] & one_hot
-    use_late = np.where(paired[:, np.newaxis], both[:, np.newaxis], valid & ~use_early)
-    tau_early = np.where(early == 0, tau[:, 0], tau[:, 1])
-    tau_late = np.where(use_late, tau, -np.inf).max(axis=1)
-    tau_late = np.where(np.isfinite(tau_late), tau_late, 0.0)
-    return (use_early, tau_early), (use_late, tau_late), paired & differ
+) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], np.ndarray, np.ndarray]:
+    """Each run's earlier and later instant, ``(use (B, 2), τ (B))`` each, the runs whose
+    earlier range is carried to the later instant (paired, both returned, τ differ) and each
+    run's earlier sonar."""
+    B = len(paired)
+    use_early, use_late = np.zeros((B, 2), dtype=bool), np.zeros((B, 2), dtype=bool)
+    tau_early, tau_late = np.zeros(B), np.zeros(B)
+    carried, early = np.zeros(B, dtype=bool), np.zeros(B, dtype=np.intp)
+    _instants_of_runs(
+        step.valid(), step.tau, paired, use_early, tau_early, use_late, tau_late, carried, early
+    )
+    return (use_early, tau_early), (use_late, tau_late), carried, early
+
+
+@njit(cache=True)
+def _instants_of_runs(valid, tau, paired, use_early, tau_early, use_late, tau_late, carried, early):
+    for r in range(valid.shape[0]):
+        first = 0 if tau[r, 0] < tau[r, 1] else 1
+        early[r] = first
+        both = valid[r, 0] and valid[r, 1]
+        differ = both and tau[r, 0] != tau[r, 1]
+        if paired[r]:  # both at the later time, the earlier carried there; none with one
+            if both:
+                use_late[r, 0] = use_late[r, 1] = True
+                tau_late[r] = max(tau[r, 0], tau[r, 1])
+                carried[r] = differ
+            continue
+        if differ:  # the earlier range, then the later
+            use_early[r, first] = True
+            tau_early[r] = tau[r, first]
+            use_late[r, 1 - first] = True
+            tau_late[r] = tau[r, 1 - first]
+        elif both:
+            use_late[r, 0] = use_late[r, 1] = True
+            tau_late[r] = tau[r, 0]
+        else:
+            for i in range(2):
+                if valid[r, i]:
+                    use_late[r, i] = True
+                    tau_late[r] = tau[r, i]
 
 
 def gaussian_step(
@@ -135,9 +162,9 @@ def gaussian_step(
         return G, c, q_s
 
     outcome = StepOutcome(x, P)
-    paired = np.broadcast_to(host.needs_both_ranges(context), (B,))
-    ranges_on = np.broadcast_to(with_ranges, (B,))
-    first, second, carried = _instant_masks(step, paired)
+    paired = np.zeros(B, dtype=bool) | host.needs_both_ranges(context)
+    ranges_on = np.zeros(B, dtype=bool) | with_ranges
+    first, second, carried, early = _instant_masks(step, paired)
     f = step.samples.shape[2]
     for index, (use, tau) in enumerate((first, second)):
         use = use & ranges_on[:, np.newaxis]
@@ -148,7 +175,6 @@ def gaussian_step(
         extra = np.zeros((B, 2))
         carry = carried & use.all(axis=1)
         if index == 1 and carry.any():
-            early = np.where(step.tau[:, 0] < step.tau[:, 1], 0, 1)
             shift, variance = carried_range_runs(z, P_z, early, at(step.tau[np.arange(B), early]),
                                                  (G, c, q_s))  # fmt: skip
             rows = np.flatnonzero(carry)
@@ -171,7 +197,7 @@ def gaussian_step(
         outcome.updates.append(
             InstantOutcome(status, update.nis, update.dof, new, q_s, update.gamma)
         )
-    G, B_t = transition(t)
+    G, B_t = _transition_of_step(t)
     outcome.x = (G @ z[:, :, np.newaxis])[:, :, 0] + (B_t @ a[:, :, np.newaxis])[:, :, 0]
     P_next = G @ P_z @ G.T
     outcome.P = 0.5 * (P_next + np.swapaxes(P_next, 1, 2))
@@ -227,3 +253,9 @@ def instant_ranges(host, instant: _Instant, q_s: np.ndarray, step: StepRanges) -
         samples, z, valid, status, q_s, model.attitude_covariance(R_nav),
         extra if extra.any() else None,
     )  # fmt: skip
+
+
+@functools.lru_cache(maxsize=8)
+def _transition_of_step(time_step: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(G(t), B(t))`` of a whole step, formed once."""
+    return transition(time_step)
