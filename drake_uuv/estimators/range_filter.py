@@ -275,7 +275,7 @@ class RangeFilter(RelativeStateEstimator):
         if not to_particles.all() and not (timed and phases[0] == _PARTICLE):
             super().advance(context, filtered, discrete_state)
         if to_particles.any():
-            self._advance_particles(context, filtered, discrete_state, phases, redraw)
+            self._advance_particles(context, filtered, discrete_state, phases, redraw, to_particles)
 
     def _advance_particles(
         self,
@@ -284,33 +284,53 @@ class RangeFilter(RelativeStateEstimator):
         discrete_state: DiscreteValues,
         phases: np.ndarray,
         redraw: np.ndarray,
+        runs: np.ndarray,
     ) -> None:
-        """The cloud's periodic update of the run that carries particles after this step
-        (the cloud steps one run for now: B = 1), writing its prediction: moved on, drawn
-        from the step's filtered Gaussian, or redrawn from its prior widened by NIS/2 and
-        weighed by the step's ranges (a filter that lost the target)."""
-        one = FilteredEstimate(filtered.x[0], filtered.P[0], filtered.status[0], filtered.nis[0])
-        scale = float(filtered.nis[0]) / 2.0 if redraw[0] else 1.0
+        """The cloud's periodic update of the runs that carry particles after this step
+        (``runs``), writing their predictions: a run already on particles moves them on; a
+        run entering the particle phase draws them from ``N(draw_x, draw_P)``: its filtered
+        Gaussian (with late ranges, its belief at the new anchor), or, for a filter that lost
+        the target (``redraw``), its prior widened by NIS/2, the draw weighed by the step's
+        ranges."""
+        drawn = phases != _PARTICLE
+        scale = np.where(redraw, filtered.nis / 2.0, 1.0)[:, np.newaxis, np.newaxis]
         if self.window is not None:
-            if phases[0] == _PARTICLE:
-                self._cloud.advance_window(context, discrete_state)
-                return
             # Drawn at the new anchor from the Gaussian filter's belief there.
             outcome = self.anchor_advance(context)
             anchor = self.anchor(context) if outcome is None else outcome
-            x, P = np.reshape(anchor.x, 6), np.reshape(anchor.P, (6, 6))
-            self._cloud.advance_window(context, discrete_state, (x, P * scale))
-            return
-        if phases[0] == _PARTICLE:
-            self._cloud.advance(context, one, discrete_state)
-        elif redraw[0]:
-            # The ranges contradict the Gaussian's prior: redraw from that prior, widened until
-            # this innovation is typical, and weigh the draw by this step's ranges.
-            prior = self.prior(context)
-            draw = (prior.x[0], prior.P[0] * scale)
-            self._cloud.advance(context, one, discrete_state, draw, weigh_draw=True)
+            draw_x, draw_P = anchor.x, anchor.P * scale
         else:
-            self._cloud.advance(context, one, discrete_state, (one.x, one.P))
+            # A run that lost the target redraws from its prior, widened until this
+            # innovation is typical; the others from their filtered Gaussian.
+            prior = self.prior(context)
+            lost = redraw[:, np.newaxis]
+            draw_x = np.where(lost, prior.x, filtered.x)
+            draw_P = np.where(lost[:, :, np.newaxis], prior.P, filtered.P) * scale
+        self._cloud_advance(context, filtered, discrete_state, runs, drawn, redraw, draw_x, draw_P)
+
+    def _cloud_advance(
+        self,
+        context: Context,
+        filtered: FilteredEstimate,
+        discrete_state: DiscreteValues,
+        runs: np.ndarray,
+        drawn: np.ndarray,
+        weigh: np.ndarray,
+        draw_x: np.ndarray,
+        draw_P: np.ndarray,
+    ) -> None:
+        """The cloud's step of the runs in ``runs`` (B): those in ``drawn`` (B) draw anew from
+        ``N(draw_x, draw_P)`` ((B, 6), (B, 6, 6)), weighed by the step's ranges where
+        ``weigh`` (B); the others move their particles on. The cloud steps one run for now:
+        this maps run 0 onto its calls (a batched cloud takes these arrays as they are)."""
+        if not runs[0]:
+            return
+        draw = (draw_x[0], draw_P[0]) if drawn[0] else None
+        if self.window is not None:
+            self._cloud.advance_window(context, discrete_state, draw)
+            return
+        one = FilteredEstimate(filtered.x[0], filtered.P[0], filtered.status[0], filtered.nis[0])
+        self._cloud.advance(context, one, discrete_state, draw, weigh_draw=bool(weigh[0]))
 
 
 class _RunOfOne:
