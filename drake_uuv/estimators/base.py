@@ -31,12 +31,13 @@ from drake_uuv.estimators.contract import (
 )
 from drake_uuv.estimators.error_model import ErrorModel, ideal_model
 from drake_uuv.estimators.ping_window import PingWindow
-from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
+from drake_uuv.estimators.timed_step import NO_UPDATE, StepOutcome, gaussian_step
 from drake_uuv.estimators.vehicle_motion import VEHICLE_MOTIONS
-from drake_uuv.models.filters import predict
+from drake_uuv.models.filter_runs import predict_runs
 from drake_uuv.models.measurement import GATED, NO_ARRIVAL, VALID
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
 from drake_uuv.models.statistics import chi2_ppf
+from drake_uuv.primitives.batch import batch_size_field, per_run, tiled
 from drake_uuv.scenario.estimators import EstimatorOptions
 
 
@@ -72,8 +73,15 @@ class RelativeStateEstimator(LeafSystem):
     - :meth:`depends_on_measurement`: the tickets of everything the step's ranges and prior
       depend on, for a cache entry of your own.
 
-    Ports (declared here; a variant may declare more inputs, e.g. random ones, which the
-    filtered estimate must then not depend on):
+    Batch: with ``batch_size`` B the estimator steps B independent runs at once (B = 1: one
+    run, through the same code). Every port and discrete-state group holds B runs row-major
+    (a per-run size n is B·n entries, run i's at ``[i·n, (i + 1)·n)``), and every accessor
+    and hook takes and gives arrays with a leading run axis (:mod:`.contract`). A run's
+    phase of the computation (updated, gated, only predicted) is a mask, never a branch for
+    the batch.
+
+    Ports (declared here, sizes per run; a variant may declare more inputs, e.g. random ones,
+    which the filtered estimate must then not depend on):
 
     - input ``range_samples`` (2f): sonar 1's f samples, then sonar 2's [m]; NaN: no return.
     - input ``sonar_status`` (2): each sonar's return status (VALID, DROPPED, …).
@@ -90,13 +98,16 @@ class RelativeStateEstimator(LeafSystem):
     - output ``nis`` (1): the update's normalised innovation squared (NaN when none).
     """
 
-    def __init__(self, config: EstimatorOptions, *, setting: EstimatorSetting) -> None:
+    def __init__(
+        self, config: EstimatorOptions, *, setting: EstimatorSetting, batch_size: int = 1
+    ) -> None:
         super().__init__()
         if not isinstance(config, EstimatorOptions):
             raise ValueError(f"config: must be an estimator's dataclass, got {config!r}")
         if not isinstance(setting, EstimatorSetting):
             raise ValueError(f"setting: must be an EstimatorSetting, got {setting!r}")
         config.validate("estimator")
+        self.batch_size = B = batch_size_field(batch_size)
         self._setting = setting
         self._time_step = float(setting.time_step)
         self._A, self._B = double_integrator(self._time_step)
@@ -105,17 +116,20 @@ class RelativeStateEstimator(LeafSystem):
         self._Q = process_noise_covariance(W, self._time_step)
         self._gate_probability = config.gate_probability
         self._gate_thresholds: dict[int, float] = {}
+        # The gate of an update of each innovation dimension (0: none), indexed by run.
+        self._gate_table = np.array([self.gate_threshold(dof) for dof in range(3)])
+        self._gate_table[0] = math.inf
         self._f = setting.samples_per_step
         self._b = setting.baseline_B
         x0 = np.asarray(config.initial_estimate, dtype=float)
         P0 = np.asarray(config.initial_covariance, dtype=float)
         self._initial = Estimate(x0, P0)
-        self._x_index = self.DeclareDiscreteState(x0)
-        self._P_index = self.DeclareDiscreteState(P0.ravel())
+        self._x_index = self.DeclareDiscreteState(tiled(x0, B))
+        self._P_index = self.DeclareDiscreteState(tiled(P0, B))
 
-        self._samples_port = self.DeclareVectorInputPort("range_samples", 2 * self._f)
-        self._status_port = self.DeclareVectorInputPort("sonar_status", 2)
-        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9)
+        self._samples_port = self.DeclareVectorInputPort("range_samples", B * 2 * self._f)
+        self._status_port = self.DeclareVectorInputPort("sonar_status", B * 2)
+        self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", B * 9)
         self.vehicle_motion = VEHICLE_MOTIONS[config.vehicle_motion](self)
         if self.vehicle_motion.state_ports:
             self.DeclareInitializationDiscreteUpdateEvent(self._start_in_stored_frame)
@@ -129,12 +143,22 @@ class RelativeStateEstimator(LeafSystem):
             )  # fmt: skip
         # The model is frozen: whether it adds anything is known once, not asked every step.
         self._model_active = self._error_model.active
-        # Σ_θ at the tick's navigated attitude (None without attitude noise), computed once a
-        # tick: the ranges, the process noise and the published floor all use it.
+        # Σ_θ (B, 3, 3) at the tick's navigated attitudes (None without attitude noise),
+        # computed once a tick: the ranges, the process noise and the published floor use it.
         self._sigma_theta = self.DeclareCacheEntry(
             "attitude noise covariance",
             ValueProducer(allocate=AbstractValue.Make(np.eye(3)).Clone, calc=self._calc_sigma),
             {self._attitude_port.ticket()},
+        )
+        # This tick's ranges, read by the update and again by a variant's periodic update.
+        empty_ranges = Ranges(*(np.zeros(0),) * 5)
+        self._ranges_entry = self.DeclareCacheEntry(
+            "ranges",
+            ValueProducer(
+                allocate=AbstractValue.Make(empty_ranges).Clone,
+                calc=lambda context, value: value.set_value(self._read_ranges(context)),
+            ),
+            self._tickets([self._samples_port, self._status_port, self._attitude_port]),
         )
         self._window = None
         if not self._error_model.schedule.immediate:
@@ -145,30 +169,33 @@ class RelativeStateEstimator(LeafSystem):
             )  # fmt: skip
             self._stepped = self._declare_window_cache("ranges arrived by this tick", True)
             self._stepped_before = self._declare_window_cache("ranges arrived before", False)
+        empty = FilteredEstimate(
+            np.zeros((B, 6)), np.zeros((B, 6, 6)), np.zeros(B), np.full(B, np.nan)
+        )
         self._filtered = self.DeclareCacheEntry(
             "filtered estimate",
             ValueProducer(
-                allocate=AbstractValue.Make(FilteredEstimate(np.zeros(6), np.eye(6))).Clone,
+                allocate=AbstractValue.Make(empty).Clone,
                 calc=self._calc_filtered,
             ),
             self.depends_on_measurement(),
         )
         depends = {self._filtered.ticket()}
-        self.DeclareVectorOutputPort("x_TU_hat", 6, self._calc_x_hat, depends)
-        self.DeclareVectorOutputPort("P_TU", 36, self._calc_P, depends)
+        self.DeclareVectorOutputPort("x_TU_hat", B * 6, self._calc_x_hat, depends)
+        self.DeclareVectorOutputPort("P_TU", B * 36, self._calc_P, depends)
         if self._window is not None:  # the belief stepped through the window's earlier ranges
             before = {self._stepped_before.ticket()}
-            self.DeclareVectorOutputPort("x_TU_prior", 6, self._calc_prior_before, before)
-            self.DeclareVectorOutputPort("P_TU_prior", 36, self._calc_P_prior_before, before)
+            self.DeclareVectorOutputPort("x_TU_prior", B * 6, self._calc_prior_before, before)
+            self.DeclareVectorOutputPort("P_TU_prior", B * 36, self._calc_P_prior_before, before)
         elif self.vehicle_motion.state_ports:
             prior_tickets = {self.xd_ticket(), *self._tickets(self.vehicle_motion.state_ports)}
-            self.DeclareVectorOutputPort("x_TU_prior", 6, self._calc_prior, prior_tickets)
+            self.DeclareVectorOutputPort("x_TU_prior", B * 6, self._calc_prior, prior_tickets)
             self.DeclareStateOutputPort("P_TU_prior", self._P_index)
         else:
             self.DeclareStateOutputPort("x_TU_prior", self._x_index)
             self.DeclareStateOutputPort("P_TU_prior", self._P_index)
-        self.DeclareVectorOutputPort("measurement_status", 1, self._calc_status, depends)
-        self.DeclareVectorOutputPort("nis", 1, self._calc_nis, depends)
+        self.DeclareVectorOutputPort("measurement_status", B, self._calc_status, depends)
+        self.DeclareVectorOutputPort("nis", B, self._calc_nis, depends)
         self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
 
     # ------------------------------------------------------------------ hooks for a variant
@@ -176,7 +203,8 @@ class RelativeStateEstimator(LeafSystem):
     def measurement_update(
         self, context: Context, prior: Estimate, ranges: Ranges
     ) -> MeasurementUpdate | None:
-        """The posterior from this step's ranges, or None when there is none to use."""
+        """The posteriors of the runs with ranges to use (``updated``), or None when no run
+        has any."""
         raise NotImplementedError(f"{type(self).__name__} must define measurement_update")
 
     def advance(
@@ -184,10 +212,11 @@ class RelativeStateEstimator(LeafSystem):
     ) -> None:
         """The periodic update at the tick: writes the prediction of ``filtered``.
 
-        ``filtered`` is this step's filtered estimate (``filtered.applied`` when an update was
-        applied). Override it to advance state of your own; call ``super().advance`` (or
-        :meth:`write_prediction`) for groups 0 and 1. With late ranges the state is the belief
-        at the window's anchor instead, moved one step on (:meth:`anchor_advance`).
+        ``filtered`` is this step's filtered estimate (``filtered.applied``: the runs whose
+        update was applied). Override it to advance state of your own; call
+        ``super().advance`` (or :meth:`write_prediction`) for groups 0 and 1. With late ranges
+        the state is the belief at the window's anchor instead, moved one step on
+        (:meth:`anchor_advance`).
         """
         if self._window is None:
             prediction = self.predicted(context, filtered.x, filtered.P)
@@ -202,15 +231,15 @@ class RelativeStateEstimator(LeafSystem):
         measurement update of the prior). The particles with late ranges use it."""
         return None
 
-    def needs_both_ranges(self, context: Context) -> bool:
-        """Whether this step's update needs both ranges at one instant (the paper's ``Y``):
-        then, with the pings at different times, the earlier range is carried to the later
-        ping time. The default: no."""
+    def needs_both_ranges(self, context: Context) -> np.ndarray | bool:
+        """Per run (B) or for all, whether this step's update needs both ranges at one
+        instant (the paper's ``Y``): then, with the pings at different times, the earlier
+        range is carried to the later ping time. The default: no."""
         return False
 
     def step_belief(self, context: Context, x: np.ndarray, P: np.ndarray, step) -> StepOutcome:
-        """The belief ``N(x, P)`` at a window step's tick (stored frame), stepped through the
-        step's arrived ranges at their ping times to the next tick
+        """The beliefs ``N(x, P)`` ((B, 6), (B, 6, 6)) at a window step's tick (stored frame),
+        stepped through the step's arrived ranges at their ping times to the next tick
         (:func:`~drake_uuv.estimators.timed_step.gaussian_step`)."""
         return gaussian_step(self, context, x, P, step)
 
@@ -247,23 +276,25 @@ class RelativeStateEstimator(LeafSystem):
 
     @property
     def initial_estimate(self) -> Estimate:
-        """``Υ̂(0|−1)`` and ``P(0|−1)`` of the config."""
+        """``Υ̂(0|−1)`` (6) and ``P(0|−1)`` (6×6) of the config, each run's."""
         return self._initial
 
     def prior(self, context: Context) -> Estimate:
-        """This step's prediction ``Υ̂(k|k−1)``, ``P(k|k−1)`` (relative state): with late
-        ranges, the anchor stepped through the window with every range arrived by now."""
+        """This step's predictions ``Υ̂(k|k−1)`` (B, 6), ``P(k|k−1)`` (B, 6, 6) (relative
+        state): with late ranges, the anchor stepped through the window with every range
+        arrived by now."""
         if self._window is not None:
             x, P, _ = self._stepped.Eval(context)
             return Estimate(self.vehicle_motion.prior(context, x), P)
-        stored = context.get_discrete_state(self._x_index).get_value()
-        P = context.get_discrete_state(self._P_index).get_value().reshape(6, 6)
-        return Estimate(self.vehicle_motion.prior(context, stored), P)
+        anchor = self.anchor(context)
+        return Estimate(self.vehicle_motion.prior(context, anchor.x), anchor.P)
 
     def anchor(self, context: Context) -> Estimate:
-        """The stored belief (the prediction, or the window's anchor), stored frame."""
-        x = context.get_discrete_state(self._x_index).get_value()
-        P = context.get_discrete_state(self._P_index).get_value().reshape(6, 6)
+        """The stored beliefs (the predictions, or the window's anchor), stored frame:
+        (B, 6), (B, 6, 6), views of the state."""
+        B = self.batch_size
+        x = per_run(context.get_discrete_state(self._x_index).get_value(), B)
+        P = per_run(context.get_discrete_state(self._P_index).get_value(), B, 6, 6)
         return Estimate(x, P)
 
     def anchor_advance(self, context: Context) -> StepOutcome | None:
@@ -275,70 +306,99 @@ class RelativeStateEstimator(LeafSystem):
         return outcomes[0]
 
     def set_prior(self, context: Context, x: np.ndarray, P: np.ndarray) -> None:
-        """Sets this step's prediction ``Υ̂(k|k−1)``, ``P(k|k−1)`` in ``context`` (e.g. to start
-        a test or a run from a chosen prior); the vehicle inputs must be connected or fixed
-        with ``vehicle_motion: navigation``."""
-        stored = np.asarray(x, dtype=float) - self.vehicle_motion.offset(context)
-        context.SetDiscreteState(self._x_index, stored)
-        context.SetDiscreteState(self._P_index, np.asarray(P, dtype=float).ravel())
+        """Sets this step's predictions ``Υ̂(k|k−1)`` ((B, 6); (6) for every run) and
+        ``P(k|k−1)`` ((B, 6, 6) or (6, 6)) in ``context`` (e.g. to start a test or a run from a
+        chosen prior); the vehicle inputs must be connected or fixed with
+        ``vehicle_motion: navigation``."""
+        B = self.batch_size
+        x = np.broadcast_to(np.asarray(x, dtype=float), (B, 6))
+        P = np.broadcast_to(np.asarray(P, dtype=float), (B, 6, 6))
+        stored = x - self.vehicle_motion.offset(context)
+        context.SetDiscreteState(self._x_index, stored.ravel())
+        context.SetDiscreteState(self._P_index, P.ravel())
 
     def ranges(self, context: Context) -> Ranges:
-        """This tick's ranges, their means, the world baseline and the error model's noise.
+        """This tick's ranges of every run, their means, the world baselines and the error
+        model's noise (:class:`~drake_uuv.estimators.contract.Ranges`).
 
         With late ranges, only those of this tick's own pings (at the tick, no latency); the
         others are the window's."""
-        samples = self._samples_port.Eval(context).reshape(2, self._f)
-        status = self._status_port.Eval(context)
+        if self._window is None:
+            return self._ranges_entry.Eval(context)
+        return self._read_ranges(context)
+
+    def _read_ranges(self, context: Context) -> Ranges:
+        B, f = self.batch_size, self._f
+        samples = per_run(self._samples_port.Eval(context), B, 2, f)
+        status = per_run(self._status_port.Eval(context), B)
         if self._window is not None:
             _, current = self._window.steps(context, samples, status)
-            samples = np.where(current[:, np.newaxis], samples, np.nan)
+            samples = np.where(current[:, :, np.newaxis], samples, np.nan)
             status = np.where(current, status, NO_ARRIVAL)
-        valid = (status == VALID) & np.isfinite(samples).all(axis=1)
-        R_WB = self._attitude_port.Eval(context).reshape(3, 3)
-        q_s = R_WB @ self._b
-        z = samples.sum(axis=1) / self._f  # samples.mean(axis=1)'s arithmetic, without its wrapper
+        valid = (status == VALID) & np.isfinite(samples).all(axis=2)
+        R_WB = per_run(self._attitude_port.Eval(context), B, 3, 3)
+        q_s = (R_WB * self._b).sum(axis=2)
+        z = samples.sum(axis=2) / f  # samples.mean(axis=2)'s arithmetic, without its wrapper
         if not self._model_active:
             return Ranges(samples, z, valid, status, q_s)
         sigma_theta, sound = self._sigma_theta.Eval(context), self._error_model.range_variance(z)
         return Ranges(samples, z, valid, status, q_s, sigma_theta, sound)
 
     def filtered(self, context: Context) -> FilteredEstimate:
-        """This step's filtered estimate (the cache entry behind ``x_TU_hat`` and ``P_TU``)."""
+        """This step's filtered estimates (the cache entry behind ``x_TU_hat`` and ``P_TU``):
+        ``x`` (B, 6), ``P`` and ``published_P`` (B, 6, 6), ``status`` and ``nis`` (B)."""
         return self._filtered.Eval(context)
 
     def predicted(
         self, context: Context, x: np.ndarray, P: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """``(A (x − offset) + B acceleration, A P Aᵀ + Q)``: the prediction of a relative
-        estimate, in the frame the state stores (see :attr:`vehicle_motion`)."""
+        """``(A (x − offset) + B acceleration, A P Aᵀ + Q)``: the predictions of relative
+        estimates (B, 6), (B, 6, 6), in the frame the state stores (see
+        :attr:`vehicle_motion`)."""
         motion = self.vehicle_motion
         extra = self.navigation_process_noise(context)
         Q = self._Q if extra is None else self._Q + extra
-        return predict(
+        return predict_runs(
             motion.stored(context, x), P, motion.acceleration(context), self._A, self._B, Q
         )
 
     def navigation_process_noise(self, context: Context) -> np.ndarray | None:
-        """What the modelled navigation errors add to the step's Q from this tick (6×6; None
-        when nothing): :meth:`~drake_uuv.estimators.error_model.ErrorModel.process_noise` at
-        this tick's commanded acceleration, navigated attitude and navigated velocity."""
+        """What the modelled navigation errors add to the step's Q from this tick ((B, 6, 6);
+        None when the model adds nothing):
+        :meth:`~drake_uuv.estimators.error_model.ErrorModel.process_noise` at this tick's
+        commanded accelerations, navigated attitudes and navigated velocities."""
         if not self._model_active:
             return None
         motion, sigma_theta = self.vehicle_motion, self._sigma_theta.Eval(context)
         return self._error_model.process_noise(
-            self._time_step, motion.acceleration(context), sigma_theta, motion.offset(context)[3:]
+            self._time_step,
+            motion.acceleration(context),
+            sigma_theta,
+            motion.offset(context)[:, 3:],
         )
 
     def _calc_sigma(self, context: Context, value: AbstractValue) -> None:
-        R_WB_nav = self._attitude_port.Eval(context).reshape(3, 3)
+        R_WB_nav = per_run(self._attitude_port.Eval(context), self.batch_size, 3, 3)
         value.set_value(self._error_model.attitude_covariance(R_WB_nav))
 
     def write_prediction(
-        self, discrete_state: DiscreteValues, x: np.ndarray, P: np.ndarray
+        self,
+        discrete_state: DiscreteValues,
+        x: np.ndarray,
+        P: np.ndarray,
+        runs: np.ndarray | None = None,
     ) -> None:
-        """Writes the next step's prediction (groups 0 and 1), ``x`` in the stored frame."""
-        discrete_state.set_value(self._x_index, x)
-        discrete_state.set_value(self._P_index, np.asarray(P).ravel())
+        """Writes the next step's predictions (groups 0 and 1), ``x`` (B, 6) in the stored
+        frame and ``P`` (B, 6, 6): of every run, or of those in the mask ``runs`` (B) only."""
+        if runs is None:
+            discrete_state.set_value(self._x_index, np.asarray(x).ravel())
+            discrete_state.set_value(self._P_index, np.asarray(P).ravel())
+            return
+        B = self.batch_size
+        x_state = per_run(discrete_state.get_mutable_value(self._x_index), B)
+        P_state = per_run(discrete_state.get_mutable_value(self._P_index), B, 6, 6)
+        x_state[runs] = np.reshape(x, (B, 6))[runs]
+        P_state[runs] = np.reshape(P, (B, 6, 6))[runs]
 
     def depends_on_measurement(self) -> set:
         """Tickets of the step's ranges, prior and discrete state (not of ``u1_W``)."""
@@ -349,9 +409,13 @@ class RelativeStateEstimator(LeafSystem):
         ]  # fmt: skip
         return self._tickets(ports) | {self.xd_ticket()}
 
+    def gate_thresholds(self, dof: np.ndarray) -> np.ndarray:
+        """Each run's gate (B) for its update's innovation dimension ``dof`` (B; 0: none)."""
+        return self._gate_table[dof]
+
     def gate_threshold(self, dof: int) -> float:
         """The NIS above which an update is rejected (``inf`` without a gate)."""
-        if self._gate_probability is None:
+        if self._gate_probability is None or dof == 0:
             return math.inf
         if dof not in self._gate_thresholds:
             self._gate_thresholds[dof] = chi2_ppf(self._gate_probability, dof)
@@ -365,8 +429,9 @@ class RelativeStateEstimator(LeafSystem):
 
     def _start_in_stored_frame(self, context: Context, discrete_state: DiscreteValues) -> None:
         """At initialization: group 0 becomes ``Υ̂(0|−1) − offset``."""
-        x0 = context.get_discrete_state(self._x_index).get_value()
-        discrete_state.set_value(self._x_index, x0 - self.vehicle_motion.offset(context))
+        x0 = per_run(context.get_discrete_state(self._x_index).get_value(), self.batch_size)
+        stored = x0 - self.vehicle_motion.offset(context)
+        discrete_state.set_value(self._x_index, stored.ravel())
 
     def _calc_filtered(self, context: Context, value: AbstractValue) -> None:
         estimate = self.filtered_estimate(context)
@@ -379,58 +444,83 @@ class RelativeStateEstimator(LeafSystem):
         value.set_value(estimate)
 
     def _velocity_covariance(self, context: Context) -> np.ndarray | None:
-        """``Σ_ev`` of the navigated velocity at this tick (navigated motion only)."""
+        """``Σ_ev`` (B, 3, 3) of the navigated velocity at this tick (navigated motion only)."""
         if not self._error_model.navigated_motion:
             return None
         return self._error_model.velocity_covariance(
-            self.vehicle_motion.offset(context)[3:], self._sigma_theta.Eval(context)
+            self.vehicle_motion.offset(context)[:, 3:], self._sigma_theta.Eval(context)
         )
 
     def _filtered_by_update(self, context: Context) -> FilteredEstimate:
         prior = self.prior(context)
         ranges = self.ranges(context)
-        update = None
-        if not self.needs_both_ranges(context) or ranges.valid.all():
-            update = self.measurement_update(context, prior, ranges)
-        if update is None:
-            estimate = FilteredEstimate(prior.x.copy(), prior.P.copy(), self._no_update(ranges))
-        elif update.nis > self.gate_threshold(update.dof):
-            estimate = FilteredEstimate(prior.x.copy(), prior.P.copy(), GATED, update.nis)
-        else:
-            estimate = FilteredEstimate(update.x, update.P, VALID, update.nis)
+        update = self.measurement_update(context, prior, ranges)
+        estimate = self.gated(prior, update, self._no_update(ranges))
         if self._window is not None:
-            self._with_window_updates(context, estimate, update is not None)
+            self._with_window_updates(context, estimate, update)
         return estimate
 
+    def gated(
+        self, prior: Estimate, update: MeasurementUpdate | None, no_update: np.ndarray
+    ) -> FilteredEstimate:
+        """The filtered estimates of a step from its ``prior``, the variant's ``update`` and
+        the status ``no_update`` (B) of a run without one: a run updated with a NIS above its
+        gate keeps its prior (status GATED), a run not updated keeps it with ``no_update``."""
+        if update is None:
+            nis = np.full(len(prior.x), np.nan)
+            return FilteredEstimate(prior.x.copy(), prior.P.copy(), no_update, nis)
+        updated = update.updated
+        gated = updated & (update.nis > self._gate_table[update.dof])
+        accept = updated & ~gated
+        if gated.any():
+            x = np.where(accept[:, np.newaxis], update.x, prior.x)
+            P = np.where(accept[:, np.newaxis, np.newaxis], update.P, prior.P)
+        else:  # a run not updated holds its prior in the update already
+            x, P = update.x, update.P
+        status = np.where(accept, float(VALID), np.where(gated, float(GATED), no_update))
+        nis = np.where(updated, update.nis, np.nan)
+        return FilteredEstimate(x, P, status, nis)
+
     @staticmethod
-    def _no_update(ranges: Ranges) -> int:
-        invalid = ranges.status[ranges.status != VALID]
-        return int(invalid[0]) if invalid.size else VALID
+    def _no_update(ranges: Ranges) -> np.ndarray:
+        """Each run's status without an update: the first sonar's code that is not VALID."""
+        first = ranges.status[:, 0]
+        return np.where(first != VALID, first, ranges.status[:, 1])
 
     def _with_window_updates(
-        self, context: Context, estimate: FilteredEstimate, updated_now: bool
+        self, context: Context, estimate: FilteredEstimate, update: MeasurementUpdate | None
     ) -> None:
-        """Status and NIS of a tick with late ranges: of the ranges that arrived at it (the
-        window's instants that hold one, and this tick's own)."""
+        """Status and NIS of each run at a tick with late ranges: of the ranges that arrived at
+        it (the window's instants that hold one, and this tick's own)."""
+        B = self.batch_size
+        updated_now = np.zeros(B, dtype=bool) if update is None else update.updated
         _, _, outcomes = self._stepped.Eval(context)
-        news = [u for o in outcomes for u in o.updates if u.new]
-        applied = [u.nis for u in news if u.status == VALID]
-        if estimate.status == VALID and updated_now:
-            applied.append(estimate.nis)
-        if applied:
-            estimate.status, estimate.nis = VALID, float(sum(applied))
-        elif news:
-            estimate.status, estimate.nis = GATED, float(sum(u.nis for u in news))
-        elif estimate.status == VALID and not updated_now:
-            estimate.status = self.arrival_status(context)
+        applied_nis, applied = np.zeros(B), np.zeros(B, dtype=bool)
+        news_nis, news = np.zeros(B), np.zeros(B, dtype=bool)
+        for u in (u for o in outcomes for u in o.updates):
+            present = u.new & (u.status != NO_UPDATE)
+            valid = present & (u.status == VALID)
+            applied_nis = applied_nis + np.where(valid, u.nis, 0.0)
+            applied |= valid
+            news_nis = news_nis + np.where(present, u.nis, 0.0)
+            news |= present
+        now = (estimate.status == VALID) & updated_now
+        applied_nis = applied_nis + np.where(now, estimate.nis, 0.0)
+        applied |= now
+        waiting = (estimate.status == VALID) & ~updated_now
+        status = np.where(waiting, self.arrival_status(context), estimate.status)
+        status = np.where(news, float(GATED), status)
+        estimate.status = np.where(applied, float(VALID), status)
+        nis = np.where(news, news_nis, estimate.nis)
+        estimate.nis = np.where(applied, applied_nis, nis)
 
-    def arrival_status(self, context: Context) -> int:
-        """The status of a tick without an update: the first code of the sonars whose range
-        arrived unusable, or NO_ARRIVAL when none arrived."""
-        status = self._status_port.Eval(context)
-        arrived = status[status != NO_ARRIVAL]
-        invalid = arrived[arrived != VALID]
-        return int(invalid[0]) if invalid.size else NO_ARRIVAL
+    def arrival_status(self, context: Context) -> np.ndarray:
+        """Each run's status of a tick without an update (B): the first code of the sonars
+        whose range arrived unusable, or NO_ARRIVAL when none arrived."""
+        status = per_run(self._status_port.Eval(context), self.batch_size)
+        invalid = (status != NO_ARRIVAL) & (status != VALID)
+        later = np.where(invalid[:, 1], status[:, 1], float(NO_ARRIVAL))
+        return np.where(invalid[:, 0], status[:, 0], later)
 
     def window_outcomes(self, context: Context) -> list[StepOutcome]:
         """The window steps' outcomes at this tick (empty with the paper's timing)."""
@@ -445,7 +535,7 @@ class RelativeStateEstimator(LeafSystem):
         return self.DeclareCacheEntry(
             description,
             ValueProducer(
-                allocate=AbstractValue.Make((np.zeros(6), np.eye(6), [])).Clone,
+                allocate=AbstractValue.Make((np.zeros(0), np.zeros(0), [])).Clone,
                 calc=lambda context, value: value.set_value(
                     self._step_window(context, include_now)
                 ),
@@ -454,13 +544,13 @@ class RelativeStateEstimator(LeafSystem):
         )
 
     def _step_window(self, context: Context, include_now: bool) -> tuple:
-        """``(x, P, outcomes)``: the anchor stepped through the window (stored frame)."""
-        f = self._f
+        """``(x, P, outcomes)``: the anchors stepped through the window (stored frame)."""
+        B, f = self.batch_size, self._f
         if include_now:
-            samples = self._samples_port.Eval(context).reshape(2, f)
-            status = self._status_port.Eval(context)
+            samples = per_run(self._samples_port.Eval(context), B, 2, f)
+            status = per_run(self._status_port.Eval(context), B)
         else:
-            samples, status = np.full((2, f), np.nan), np.full(2, float(NO_ARRIVAL))
+            samples, status = np.full((B, 2, f), np.nan), np.full((B, 2), float(NO_ARRIVAL))
         steps, _ = self._window.steps(context, samples, status)
         anchor = self.anchor(context)
         x, P = anchor.x, anchor.P
@@ -474,27 +564,29 @@ class RelativeStateEstimator(LeafSystem):
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         self.advance(context, self._filtered.Eval(context), discrete_state)
         if self._window is not None:
-            samples = self._samples_port.Eval(context).reshape(2, self._f)
-            self._window.record(context, discrete_state, samples, self._status_port.Eval(context))
+            B = self.batch_size
+            samples = per_run(self._samples_port.Eval(context), B, 2, self._f)
+            status = per_run(self._status_port.Eval(context), B)
+            self._window.record(context, discrete_state, samples, status)
 
     def _calc_prior(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self.prior(context).x)
+        output.set_value(self.prior(context).x.ravel())
 
     def _calc_prior_before(self, context: Context, output: BasicVector) -> None:
         x, _, _ = self._stepped_before.Eval(context)
-        output.set_value(self.vehicle_motion.prior(context, x))
+        output.set_value(self.vehicle_motion.prior(context, x).ravel())
 
     def _calc_P_prior_before(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._stepped_before.Eval(context)[1].ravel())
 
     def _calc_x_hat(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._filtered.Eval(context).x)
+        output.set_value(self._filtered.Eval(context).x.ravel())
 
     def _calc_P(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._filtered.Eval(context).published_P.ravel())
 
     def _calc_status(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._filtered.Eval(context).status)
+        output.set_value(self._filtered.Eval(context).status)
 
     def _calc_nis(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._filtered.Eval(context).nis)
+        output.set_value(self._filtered.Eval(context).nis)

@@ -73,7 +73,8 @@ class EstimatorSetting:
 
 @dataclass
 class Estimate:
-    """A relative state estimate ``[q, ϑ]`` and its covariance."""
+    """Relative state estimates ``[q, ϑ]`` of a batch of runs and their covariances: ``x``
+    (B, 6), ``P`` (B, 6, 6)."""
 
     x: np.ndarray
     P: np.ndarray
@@ -81,17 +82,20 @@ class Estimate:
 
 @dataclass(frozen=True)
 class Ranges:
-    """One step's ranges, as an estimator reads them.
+    """One step's ranges of a batch of runs, as an estimator reads them (run i in row i).
 
-    ``samples`` (2×f, sonar 1's row first; NaN without a return), ``z`` the per-sonar sample
-    means, ``valid`` which sonars returned a usable range (status VALID and finite samples),
-    ``status`` the sonar's per-sonar codes, ``q_s`` the world baseline ``R_WB b`` [m] at the
-    ranges' instant.
+    ``samples`` (B, 2, f; sonar 1's row first; NaN without a return), ``z`` (B, 2) the
+    per-sonar sample means, ``valid`` (B, 2) which sonars returned a usable range (status
+    VALID and finite samples), ``status`` (B, 2) the sonar's per-sonar codes, ``q_s`` (B, 3)
+    the world baseline ``R_WB b`` [m] at the ranges' instant.
 
-    What the estimator's error model adds to the ranges' noise (None: nothing):
-    ``attitude_covariance`` Σ_θ (3×3), the navigated attitude's error as a world rotation
-    vector, which moves the baseline; ``extra_variance`` (2), more variance per range (the
-    sound-speed scale, a range carried from its own ping time to another).
+    What the estimator's error model adds to the ranges' noise (None: nothing, for every
+    run): ``attitude_covariance`` Σ_θ (B, 3, 3), the navigated attitude's error as a world
+    rotation vector, which moves the baseline; ``extra_variance`` (B, 2), more variance per
+    range (the sound-speed scale, a range carried from its own ping time to another).
+
+    The methods broadcast over leading axes: a run's fields without the run axis (a single
+    instant, as the window's steps and the particle cloud take them) work alike.
     """
 
     samples: np.ndarray
@@ -104,58 +108,74 @@ class Ranges:
 
     @property
     def sonars(self) -> np.ndarray:
-        """The indices of the sonars that returned."""
+        """The indices of the sonars that returned (a single run's ranges)."""
         return np.flatnonzero(self.valid)
 
     @property
     def exact(self) -> bool:
-        """Whether the ranges' noise is the sonars' alone."""
+        """Whether the ranges' noise is the sonars' alone (for every run)."""
         return self.attitude_covariance is None and self.extra_variance is None
 
+    def run(self, i: int) -> "Ranges":
+        """Run i's ranges, without the run axis."""
+        return Ranges(
+            self.samples[i], self.z[i], self.valid[i], self.status[i], self.q_s[i],
+            None if self.attitude_covariance is None else self.attitude_covariance[i],
+            None if self.extra_variance is None else self.extra_variance[i],
+        )  # fmt: skip
+
     def covariance(self, R: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """The two ranges' noise covariance: the sonars' ``R`` plus the error model's,
-        the attitude's part at the estimate ``x``."""
+        """The two ranges' noise covariance (…, 2, 2): the sonars' ``R`` (2×2) plus the error
+        model's, the attitude's part at the estimates ``x`` (…, 6)."""
         if self.exact:
             return R
-        R = R.copy()
+        R = R + np.zeros(self.z.shape[:-1] + (2, 2))
         if self.extra_variance is not None:
-            R[np.diag_indices(2)] += self.extra_variance
+            R[..., 0, 0] += self.extra_variance[..., 0]
+            R[..., 1, 1] += self.extra_variance[..., 1]
         if self.attitude_covariance is not None:
-            R += range_attitude_covariance(x[:3], self.q_s, self.attitude_covariance)
+            R += range_attitude_covariance(x[..., :3], self.q_s, self.attitude_covariance)
         return R
 
     def variances(self, eta: np.ndarray) -> np.ndarray:
-        """The per-sonar variances ``η`` plus the extra ones."""
-        return eta if self.extra_variance is None else eta + self.extra_variance
+        """The per-sonar variances ``η`` (2) plus the extra ones: (…, 2)."""
+        if self.extra_variance is None:
+            return np.broadcast_to(eta, self.z.shape)
+        return eta + self.extra_variance
 
-    def difference_variance(self, x: np.ndarray) -> float:
-        """The error model's extra variance of the paper's ``Y = q_sᵀ q`` at ``x``."""
+    def difference_variance(self, x: np.ndarray) -> np.ndarray:
+        """The error model's extra variance of the paper's ``Y = q_sᵀ q`` at ``x`` (…, 6)."""
         if self.attitude_covariance is None:
-            return 0.0
-        return difference_attitude_variance(x[:3], self.q_s, self.attitude_covariance)
+            return np.zeros(self.z.shape[:-1])
+        return difference_attitude_variance(x[..., :3], self.q_s, self.attitude_covariance)
 
 
 @dataclass
 class MeasurementUpdate:
-    """A variant's proposed update: the posterior and its innovation statistic."""
+    """A variant's proposed updates of a batch of runs: the posteriors (``x`` (B, 6), ``P``
+    (B, 6, 6); the prior for a run not updated), their innovation statistic ``nis`` (B; NaN
+    for a run not updated) and dimension ``dof`` (B), and ``updated`` (B) the runs updated
+    (the others had no range to use)."""
 
     x: np.ndarray
     P: np.ndarray
-    nis: float  # normalised innovation squared νᵀ S⁻¹ ν
-    dof: int  # dimension of the innovation
-    # The noise variance Γ of a linear update on the paper's Y (None for other updates): a
-    # linear start tracks its prior's share of the covariance with it.
-    gamma: float | None = None
+    nis: np.ndarray  # normalised innovation squared νᵀ S⁻¹ ν
+    dof: np.ndarray  # dimension of the innovation
+    updated: np.ndarray
+    # The noise variance Γ (B) of a linear update on the paper's Y (None for other updates):
+    # a linear start tracks its prior's share of the covariance with it.
+    gamma: np.ndarray | None = None
 
 
 @dataclass
 class FilteredEstimate:
-    """``Υ̂(k|k)``, ``P(k|k)``, the step's measurement status and NIS (NaN: no update)."""
+    """``Υ̂(k|k)`` (B, 6), ``P(k|k)`` (B, 6, 6), each run's measurement status (B) and NIS
+    (B; NaN: no update)."""
 
     x: np.ndarray
     P: np.ndarray
-    status: int = VALID
-    nis: float = math.nan
+    status: np.ndarray
+    nis: np.ndarray
     # What the published covariance adds to P (the error model's floors); None: nothing.
     floor: np.ndarray | None = None
 
@@ -165,6 +185,14 @@ class FilteredEstimate:
         return self.P if self.floor is None else self.P + self.floor
 
     @property
-    def applied(self) -> bool:
-        """Whether a measurement update was applied (VALID with a finite NIS)."""
-        return self.status == VALID and math.isfinite(self.nis)
+    def applied(self) -> np.ndarray:
+        """The runs whose measurement update was applied (VALID with a finite NIS), (B)."""
+        return (self.status == VALID) & np.isfinite(self.nis)
+
+    def run(self, i: int) -> "FilteredEstimate":
+        """Run i's estimate as a batch of one."""
+        runs = slice(i, i + 1)
+        floor = None if self.floor is None else self.floor[runs]
+        return FilteredEstimate(
+            self.x[runs], self.P[runs], self.status[runs], self.nis[runs], floor
+        )

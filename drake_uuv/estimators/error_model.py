@@ -32,11 +32,12 @@ error) into the filter:
 arrive at a tick are taken as measured then, together. It shows what ignoring them costs.
 """
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
-from drake_uuv.models.motion import process_noise_covariance
+from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.navigation_noise import (
     NavigationErrors,
     commanded_acceleration_noise,
@@ -50,7 +51,12 @@ from drake_uuv.models.timing import PingSchedule
 
 @dataclass(frozen=True)
 class ErrorModel:
-    """The errors a filter models (all zero for ``error_model: ideal``)."""
+    """The errors a filter models (all zero for ``error_model: ideal``).
+
+    Its functions take the values of a batch of runs along leading axes (an attitude (…, 3, 3),
+    an acceleration (…, 3), ranges (…, 2)). Whether a term is added at all (None otherwise)
+    depends on the model alone, never on a run's values.
+    """
 
     errors: NavigationErrors
     schedule: PingSchedule
@@ -62,12 +68,21 @@ class ErrorModel:
         """Whether any navigation or sound-speed error is modelled (timing aside)."""
         return self.errors.any or self.sound_speed_error != 0.0
 
-    @property
+    @functools.cached_property
     def attitude_noise(self) -> bool:
         return bool(np.any(self.errors.attitude_noise > 0.0))
 
+    @property
+    def adds_process_noise(self) -> bool:
+        """Whether :meth:`process_noise` adds anything (with the paper's timing)."""
+        velocity = self.errors.velocity_noise > 0.0 or self.errors.velocity_bias > 0.0
+        if self.navigated_motion:
+            return velocity or self.attitude_noise
+        return self.attitude_noise
+
     def attitude_covariance(self, R_WB_nav: np.ndarray) -> np.ndarray | None:
-        """``Σ_θ`` of the AHRS noise at a navigated attitude (None without attitude noise)."""
+        """``Σ_θ`` (…, 3, 3) of the AHRS noise at navigated attitudes (…, 3, 3); None without
+        attitude noise."""
         if not self.attitude_noise:
             return None
         return rotation_vector_covariance(R_WB_nav, self.errors.attitude_noise)
@@ -82,7 +97,7 @@ class ErrorModel:
         self, a_W: np.ndarray, sigma_theta: np.ndarray | None
     ) -> np.ndarray | None:
         """What the attitude noise ``sigma_theta`` (:meth:`attitude_covariance`) adds to W for a
-        step commanded with ``a_W`` (commanded motion only; None otherwise)."""
+        step commanded with ``a_W`` (…, 3) (commanded motion only; None otherwise)."""
         if self.navigated_motion or sigma_theta is None:
             return None
         return commanded_acceleration_noise(a_W, sigma_theta)
@@ -90,16 +105,19 @@ class ErrorModel:
     def velocity_covariance(
         self, v_W_nav: np.ndarray, sigma_theta: np.ndarray | None
     ) -> np.ndarray | None:
-        """``Σ_ev`` (3×3) of the navigated velocity's error at the navigated velocity and the
-        attitude noise ``sigma_theta`` (:meth:`attitude_covariance`): ``(σ_v² + σ_b²) I +
-        [v]× Σ_θ [v]×ᵀ`` (navigated motion only; None otherwise or when it is zero)."""
+        """``Σ_ev`` (…, 3, 3) of the navigated velocity's error at the navigated velocity
+        (…, 3) and the attitude noise ``sigma_theta`` (:meth:`attitude_covariance`):
+        ``(σ_v² + σ_b²) I + [v]× Σ_θ [v]×ᵀ`` (navigated motion only; None otherwise or when the
+        model makes it zero)."""
         if not self.navigated_motion:
             return None
         errors = self.errors
+        if sigma_theta is None and errors.velocity_noise == 0.0 and errors.velocity_bias == 0.0:
+            return None
         covariance = navigated_velocity_covariance(
             v_W_nav, sigma_theta, errors.velocity_noise, errors.velocity_bias
         )
-        return covariance if covariance.any() else None
+        return np.broadcast_to(covariance, np.shape(v_W_nav) + (3,))
 
     def process_noise(
         self,
@@ -108,35 +126,47 @@ class ErrorModel:
         sigma_theta: np.ndarray | None,
         v_W_nav: np.ndarray,
     ) -> np.ndarray | None:
-        """What the navigation adds to a step's Q (6×6) with the paper's timing: the commanded
-        acceleration's error through the double integrator (commanded motion), or the
-        dead-reckoned position's walk ``t² Σ_ev`` (navigated motion). None when nothing."""
-        Q = np.zeros((6, 6))
+        """What the navigation adds to a step's Q (…, 6, 6) with the paper's timing: the
+        commanded acceleration's error through the double integrator (commanded motion), or
+        the dead-reckoned position's walk ``t² Σ_ev`` (navigated motion). None when the model
+        adds nothing."""
+        if not self.adds_process_noise:
+            return None
+        Q = np.zeros(np.shape(a_W)[:-1] + (6, 6))
         W = self.acceleration_covariance(a_W, sigma_theta)
         if W is not None:
-            Q += process_noise_covariance(W, time_step)
+            _, B = double_integrator(time_step)
+            Q += B @ W @ B.T
         velocity = self.velocity_covariance(v_W_nav, sigma_theta)
         if velocity is not None:
-            Q[:3, :3] += (time_step * time_step) * velocity
-        return Q if Q.any() else None
+            Q[..., :3, :3] += (time_step * time_step) * velocity
+        return Q
+
+    @property
+    def adds_floor(self) -> bool:
+        """Whether :meth:`floor` adds anything (with a velocity covariance: always)."""
+        return self.active and (self.errors.heading_bias > 0.0 or self.sound_speed_error != 0.0)
 
     def floor(
         self, x: np.ndarray, velocity_covariance: np.ndarray | None = None
     ) -> np.ndarray | None:
-        """What the published covariance adds to the filter's own at the estimate ``x``: the
-        heading bias's and the sound-speed scale's floors, and the navigated velocity's error
-        ``velocity_covariance`` (:meth:`velocity_covariance`; None when there is none)."""
-        if not self.active:
+        """What the published covariance adds to the filter's own at the estimates ``x``
+        (B, 6; or one estimate (6)): the heading bias's and the sound-speed scale's floors, and
+        the navigated velocity's error ``velocity_covariance`` (:meth:`velocity_covariance`;
+        None when there is none). None when the model adds nothing."""
+        if not self.active or (not self.adds_floor and velocity_covariance is None):
             return None
-        floor = np.zeros((6, 6))
-        x = np.asarray(x, dtype=float)[np.newaxis]
+        x = np.asarray(x, dtype=float)
+        single = x.ndim == 1
+        x = x.reshape(-1, 6)
+        floor = np.zeros((len(x), 6, 6))
         if self.errors.heading_bias > 0.0:
-            floor += heading_bias_floor(x[:, :3], x[:, 3:], self.errors.heading_bias)[0]
+            floor += heading_bias_floor(x[:, :3], x[:, 3:], self.errors.heading_bias)
         if self.sound_speed_error != 0.0:
-            floor += sound_speed_floor(x[:, :3], self.sound_speed_error)[0]
+            floor += sound_speed_floor(x[:, :3], self.sound_speed_error)
         if velocity_covariance is not None:
-            floor[3:, 3:] += velocity_covariance
-        return floor if floor.any() else None
+            floor[:, 3:, 3:] += velocity_covariance
+        return floor[0] if single else floor
 
 
 def ideal_model(time_step: float) -> ErrorModel:

@@ -9,7 +9,8 @@ from drake_uuv.models.timing import PingSchedule
 from drake_uuv.primitives.variant_table import variant_system
 from drake_uuv.scenario import Ekf, Iekf, PaperKf, ParticleFilter, Scenario, Ukf
 
-#: Variant dataclass → the class of its system, built as ``cls(config, setting=...)``.
+#: Variant dataclass → the class of its system, built as
+#: ``cls(config, setting=..., batch_size=B)``.
 ESTIMATORS: dict[type, type[RelativeStateEstimator]] = {
     PaperKf: RangeDifferenceKalmanFilter,
     Ekf: RangeFilter,
@@ -38,10 +39,6 @@ def estimator_setting(scenario: Scenario) -> EstimatorSetting:
 
 
 def make_estimator(scenario: Scenario, *, batch_size: int = 1) -> RelativeStateEstimator:
-    """The estimator of ``scenario.estimator``'s variant."""
+    """The estimator of ``scenario.estimator``'s variant, stepping ``batch_size`` runs."""
     cls = variant_system(ESTIMATORS, scenario.estimator, "estimator")
-    return cls(scenario.estimator, setting=estimator_setting(scenario), **_TRANSITIONAL(batch_size))
-
-
-def _TRANSITIONAL(batch_size: int) -> dict:  # TRANSITIONAL until the slot's systems batch
-    return {} if batch_size == 1 else {"batch_size": batch_size}
+    return cls(scenario.estimator, setting=estimator_setting(scenario), batch_size=batch_size)

@@ -1,5 +1,6 @@
 """The paper's linear Kalman filter on the squared-range difference, eq. (9)."""
 
+import numpy as np
 from pydrake.systems.framework import Context
 
 from drake_uuv.estimators.base import (
@@ -9,8 +10,11 @@ from drake_uuv.estimators.base import (
     Ranges,
     RelativeStateEstimator,
 )
-from drake_uuv.models.filters import range_difference_update
-from drake_uuv.models.measurement import paper_measurement
+from drake_uuv.models.filter_runs import (
+    noise_model_code,
+    paper_measurement_runs,
+    range_difference_update_runs,
+)
 from drake_uuv.scenario.estimators import PaperKf
 
 
@@ -22,7 +26,9 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
     update :func:`~drake_uuv.models.filters.range_difference_update` with ``C = [q_sᵀ, 0]``,
     used when both sonars returned. ``Y``, its noise mean ``m`` and variance ``Γ`` are the
     sonar's own (:func:`~drake_uuv.models.measurement.paper_measurement`: the first sample of
-    each sonar, ``Γ`` from all f samples, with ``config.noise_model``).
+    each sonar, ``Γ`` from all f samples, with ``config.noise_model``). With ``batch_size``
+    B it steps B runs (:class:`~drake_uuv.estimators.base.RelativeStateEstimator`): a run
+    without both ranges only predicts.
 
     .. pydrake_system::
 
@@ -40,26 +46,27 @@ class RangeDifferenceKalmanFilter(RelativeStateEstimator):
         - measurement_status
         - nis
 
-    The ports are the base class's (with ``vehicle_motion: navigation``, ``p_WU_nav`` and
-    ``v_WU_nav`` in place of ``u1_W``).
+    The ports are the base class's, sizes per run (with ``vehicle_motion: navigation``,
+    ``p_WU_nav`` and ``v_WU_nav`` in place of ``u1_W``); with ``batch_size`` B every port and
+    state holds B runs row-major.
     """
 
-    def __init__(self, config: PaperKf, *, setting: EstimatorSetting) -> None:
-        super().__init__(config, setting=setting)
-        self._noise_model = config.noise_model
+    def __init__(self, config: PaperKf, *, setting: EstimatorSetting, batch_size: int = 1) -> None:
+        super().__init__(config, setting=setting, batch_size=batch_size)
+        self._noise_model = noise_model_code(config.noise_model)
         self._eta = setting.noise_variances
+        self._dof = np.ones(self.batch_size, dtype=np.intp)
 
     def measurement_update(
         self, context: Context, prior: Estimate, ranges: Ranges
     ) -> MeasurementUpdate | None:
-        if not ranges.valid.all():
-            return None  # Y needs both ranges.
+        both = ranges.valid[:, 0] & ranges.valid[:, 1]  # Y needs both ranges.
         eta = ranges.variances(self._eta)
-        Y, m, gamma = paper_measurement(ranges.samples, eta, self._noise_model)
+        Y, m, gamma = paper_measurement_runs(ranges.samples, eta, self._noise_model)
         if not ranges.exact:  # the error model's: the baseline's attitude error
             gamma += ranges.difference_variance(prior.x)
-        x, P, nis = range_difference_update(prior.x, prior.P, Y, m, gamma, ranges.q_s)
-        return MeasurementUpdate(x, P, nis, 1, gamma)
+        x, P, nis = range_difference_update_runs(prior.x, prior.P, Y, m, gamma, ranges.q_s, both)
+        return MeasurementUpdate(x, P, nis, self._dof, both, gamma)
 
     def needs_both_ranges(self, context: Context) -> bool:
         return True

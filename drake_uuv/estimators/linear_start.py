@@ -22,19 +22,23 @@ from pydrake.systems.framework import Context, DiscreteValues
 
 from drake_uuv.estimators.base import (
     Estimate,
-    FilteredEstimate,
     MeasurementUpdate,
     Ranges,
     RelativeStateEstimator,
 )
-from drake_uuv.models.filters import range_difference_update
-from drake_uuv.models.handover import prior_share_predict, prior_share_update
-from drake_uuv.models.measurement import range_difference_noise
+from drake_uuv.models.filter_runs import (
+    congruence_runs,
+    noise_model_code,
+    prior_share_update_runs,
+    range_difference_noise_runs,
+    range_difference_update_runs,
+)
+from drake_uuv.primitives.batch import per_run, tiled
 
 
 class LinearStart:
-    """The paper's KF on the means' ``Y``, declared on ``host`` with its state ``S`` (36,
-    row-major; ``P0`` at the start)."""
+    """The paper's KF on the means' ``Y``, declared on ``host`` with its state ``S`` (36 a
+    run, row-major; ``P0`` at the start). Every value holds the host's B runs."""
 
     def __init__(
         self,
@@ -43,53 +47,66 @@ class LinearStart:
         mean_variances: np.ndarray,
         initial_covariance: np.ndarray,
     ) -> None:
-        range_difference_noise(noise_model, mean_variances, np.ones(2))  # Fail early.
         self._host = host
-        self._noise_model = noise_model
+        self._noise_model = noise_model_code(noise_model)  # Fail early.
         self._mean_variances = mean_variances
+        self._B = host.batch_size
+        self._dof = np.ones(self._B, dtype=np.intp)
         P0 = np.asarray(initial_covariance, dtype=float)
-        self._prior_share_index = host.DeclareDiscreteState(P0.ravel())
+        self._prior_share_index = host.DeclareDiscreteState(tiled(P0, self._B))
 
-    def measurement(self, ranges: Ranges, x: np.ndarray) -> tuple[float, float, float]:
-        """``(Y, m, Γ)`` of the per-sonar means, with the error model's noise at ``x``."""
+    def measurement(
+        self, ranges: Ranges, x: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(Y, m, Γ)`` (B each) of the per-sonar means, with the error model's noise at
+        ``x`` (B, 6)."""
         z = ranges.z
         variances = ranges.variances(self._mean_variances)
-        m, gamma = range_difference_noise(self._noise_model, variances, z * z)
-        gamma = float(gamma)
+        squared = z * z
+        m, gamma = range_difference_noise_runs(self._noise_model, variances, squared)
         if not ranges.exact:
             gamma += ranges.difference_variance(x)
-        return 0.5 * (z[0] * z[0] - z[1] * z[1]), float(m), gamma
+        return 0.5 * (squared[:, 0] - squared[:, 1]), m, gamma
 
-    def update(self, prior: Estimate, ranges: Ranges) -> MeasurementUpdate | None:
-        """The KF's update on ``Y``; None unless both sonars returned."""
-        if not ranges.valid.all():
-            return None  # Y needs both ranges; predict until both return.
+    def update(
+        self, prior: Estimate, ranges: Ranges, runs: np.ndarray | None = None
+    ) -> MeasurementUpdate:
+        """The KF's update on ``Y`` of the runs in ``runs`` (B; default all) whose sonars both
+        returned (the others keep their prior: Y needs both ranges)."""
+        both = ranges.valid[:, 0] & ranges.valid[:, 1]
+        if runs is not None:
+            both &= runs
         Y, m, gamma = self.measurement(ranges, prior.x)
-        x, P, nis = range_difference_update(prior.x, prior.P, Y, m, gamma, ranges.q_s)
-        return MeasurementUpdate(x, P, nis, 1, gamma)
+        x, P, nis = range_difference_update_runs(prior.x, prior.P, Y, m, gamma, ranges.q_s, both)
+        return MeasurementUpdate(x, P, nis, self._dof, both, gamma)
 
     def prior_share(self, context: Context) -> np.ndarray:
-        """``S`` of this step's prior (6×6)."""
-        return context.get_discrete_state(self._prior_share_index).get_value().reshape(6, 6)
+        """``S`` of this step's priors (B, 6, 6)."""
+        value = context.get_discrete_state(self._prior_share_index).get_value()
+        return per_run(value, self._B, 6, 6)
 
     def set_prior_share(self, context: Context, S: np.ndarray) -> None:
-        """Sets ``S`` of this step's prior."""
-        context.SetDiscreteState(self._prior_share_index, np.asarray(S, dtype=float).ravel())
+        """Sets ``S`` of this step's priors ((B, 6, 6), or (6, 6) for every run)."""
+        S = np.broadcast_to(np.asarray(S, dtype=float), (self._B, 6, 6))
+        context.SetDiscreteState(self._prior_share_index, S.ravel())
 
     def advance(
         self,
         context: Context,
-        filtered: FilteredEstimate,
-        updates: list[tuple[np.ndarray, float]],
+        P_filtered: np.ndarray,
+        updates: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+        linear: np.ndarray,
         discrete_state: DiscreteValues,
     ) -> np.ndarray:
-        """Through this tick's linear updates ``(q_s, Γ)`` and the prediction: writes the next
-        ``S`` and returns the updated one, which the hand-over tests. (With late ranges the
-        updates happened at their ping times within the window; ``S`` takes them at the tick,
-        with the tick's covariance: an approximation good enough for the hand-over's test.)"""
+        """Through this tick's linear updates, each ``(q_s (B, 3), Γ (B), runs (B))``, and the
+        prediction of the runs in ``linear`` (B): writes the next ``S`` and returns the updated
+        one (B, 6, 6), which the hand-over tests (the other runs' ``S`` stays). (With late
+        ranges the updates happened at their ping times within the window; ``S`` takes them at
+        the tick, with the tick's covariance: an approximation good enough for the hand-over's
+        test.)"""
         S = self.prior_share(context)
-        for q_s, gamma in updates:
-            S = prior_share_update(S, filtered.P, q_s, gamma)
+        for q_s, gamma, runs in updates:
+            S = prior_share_update_runs(S, P_filtered, q_s, gamma, runs)
         A, _, _ = self._host.model
-        discrete_state.set_value(self._prior_share_index, prior_share_predict(S, A).ravel())
+        discrete_state.set_value(self._prior_share_index, congruence_runs(S, A, linear).ravel())
         return S

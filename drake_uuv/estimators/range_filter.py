@@ -37,10 +37,15 @@ from drake_uuv.estimators.contract import (
 from drake_uuv.estimators.linear_start import LinearStart
 from drake_uuv.estimators.particle_cloud import ParticleCloud
 from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
-from drake_uuv.models.handover import HandoverPolicy, Phase, PhaseEvidence, Transition
+from drake_uuv.models.filter_runs import range_difference_update_runs, range_update_runs
+from drake_uuv.models.handover import HandoverPolicy, Phase, PhaseEvidence
 from drake_uuv.models.measurement import VALID
+from drake_uuv.primitives.batch import per_run, tiled
 from drake_uuv.primitives.signal import Signal
 from drake_uuv.scenario.estimators import RawRangeOptions
+
+# The phases as plain integers for the masks (an enum member's lookup costs more than its use).
+_RANGE, _LINEAR, _PARTICLE = int(Phase.RANGE), int(Phase.LINEAR), int(Phase.PARTICLE)
 
 
 class RangeFilter(RelativeStateEstimator):
@@ -50,15 +55,19 @@ class RangeFilter(RelativeStateEstimator):
     needed), :attr:`Phase.RANGE` the Gaussian update on the ranges of the sonars that
     returned (NIS with as many degrees of freedom), :attr:`Phase.PARTICLE` the particles'
     reweighting. After each applied update the policy gives the next phase
-    (:meth:`~drake_uuv.models.handover.HandoverPolicy.next_phase`); a new particle phase
+    (:meth:`~drake_uuv.models.handover.HandoverPolicy.next_phases`); a new particle phase
     draws its particles from the step's filtered Gaussian, or, for a filter that lost the
     target, from the step's prior widened by NIS/2 and weighed by the step's ranges. A step
     without a return only predicts. Timing, prediction, the NIS gate and the ports are those
     of :class:`~drake_uuv.estimators.base.RelativeStateEstimator`.
 
-    Discrete state: the base's groups 0 and 1 (with particles, the predicted cloud's mean and
-    covariance); ``[phase, linear updates applied]``; the linear start's prior share ``S``;
-    with particles, the cloud's particles and log weights.
+    With ``batch_size`` B each run has its own phase: the phases are per-run masks of one
+    computation, never a branch for the batch. (The particle cloud, and late ranges, step
+    one run for now: a filter that may carry particles takes B = 1.)
+
+    Discrete state (per run, B runs row-major): the base's groups 0 and 1 (with particles,
+    the predicted cloud's mean and covariance); ``[phase, linear updates applied]``; the
+    linear start's prior share ``S``; with particles, the cloud's particles and log weights.
 
     .. pydrake_system::
 
@@ -83,7 +92,7 @@ class RangeFilter(RelativeStateEstimator):
     - ``particle_seed`` (1, random uniform in [0, 1), only with particles): seeds the step's
       draw, resampling, regularisation and process noise.
     - The other ports are the base class's (with ``vehicle_motion: navigation``, ``p_WU_nav``
-      and ``v_WU_nav`` in place of ``u1_W``).
+      and ``v_WU_nav`` in place of ``u1_W``); sizes per run, B runs row-major.
     """
 
     #: Logged beside the slot's signals: the phase of each step.
@@ -95,14 +104,19 @@ class RangeFilter(RelativeStateEstimator):
         ),
     )  # fmt: skip
 
-    def __init__(self, config: RawRangeOptions, *, setting: EstimatorSetting) -> None:
-        super().__init__(config, setting=setting)
+    def __init__(
+        self, config: RawRangeOptions, *, setting: EstimatorSetting, batch_size: int = 1
+    ) -> None:
+        super().__init__(config, setting=setting, batch_size=batch_size)
+        B = self.batch_size
         self._mean_variances = setting.noise_variances / setting.samples_per_step
         self._noise_std = np.sqrt(self._mean_variances)
         self._R = np.diag(self._mean_variances)
         self._policy: HandoverPolicy = config.handover_policy()
-        self._gaussian_update = config.range_update()
-        if self._gaussian_update is None and not self._policy.linear_start:
+        update = config.range_update()
+        self._gaussian = update is not None
+        self._gaussian_update = None if update is None else range_update_runs(update)
+        if not self._gaussian and not self._policy.linear_start:
             raise ValueError(
                 "handover: a filter without a Gaussian update draws its particles from the "
                 f"linear start, max_linear_steps must not be 0, got {self._policy!r}"
@@ -111,11 +125,17 @@ class RangeFilter(RelativeStateEstimator):
             self, config.noise_model, self._mean_variances, self.initial_estimate.P
         )
         phase = Phase.LINEAR if self._policy.linear_start else Phase.RANGE
-        self._phase_index = self.DeclareDiscreteState(np.array([float(phase), 0.0]))
+        self._phase_index = self.DeclareDiscreteState(tiled([float(phase), 0.0], B))
         self.DeclareStateOutputPort("estimator_phase", self._phase_index)
         self._cloud = None
-        if self._gaussian_update is None or self._policy.particle_bridge:
-            self._cloud = ParticleCloud(self, config.particle_parameters(), self._R)
+        if not self._gaussian or self._policy.particle_bridge:
+            if B != 1:
+                raise ValueError(
+                    "batch_size: a filter that may carry particles steps one run at a time "
+                    f"for now, got {B}"
+                )
+            self._cloud = ParticleCloud(_RunOfOne(self), config.particle_parameters(), self._R)
+        self._dof_linear = np.ones(B, dtype=np.intp)
 
     @property
     def policy(self) -> HandoverPolicy:
@@ -130,140 +150,250 @@ class RangeFilter(RelativeStateEstimator):
     def start(self) -> LinearStart:
         return self._start
 
-    def phase(self, context: Context) -> Phase:
-        """This step's phase."""
-        return Phase(int(context.get_discrete_state(self._phase_index).get_value()[0]))
+    def _phase_state(self, context: Context) -> np.ndarray:
+        value = context.get_discrete_state(self._phase_index).get_value()
+        return per_run(value, self.batch_size)
 
-    def set_phase(self, context: Context, phase: Phase, linear_updates: int = 0) -> None:
-        """Sets this step's phase and the count of linear updates applied before it."""
-        context.SetDiscreteState(self._phase_index, np.array([float(phase), linear_updates]))
+    def phases(self, context: Context) -> np.ndarray:
+        """This step's phase of each run (B, the :class:`Phase` values as integers)."""
+        return self._phase_state(context)[:, 0].astype(np.intp)
 
-    def linear_updates(self, context: Context) -> int:
-        """Linear updates applied before this step."""
-        return int(context.get_discrete_state(self._phase_index).get_value()[1])
+    def phase(self, context: Context, run: int = 0) -> Phase:
+        """This step's phase of run ``run``."""
+        return Phase(int(self._phase_state(context)[run, 0]))
+
+    def set_phase(
+        self, context: Context, phase: Phase | np.ndarray, linear_updates: int | np.ndarray = 0
+    ) -> None:
+        """Sets this step's phase and the count of linear updates applied before it (each a
+        value for every run, or one per run)."""
+        B = self.batch_size
+        value = np.empty((B, 2))
+        value[:, 0] = np.asarray(phase, dtype=float)
+        value[:, 1] = linear_updates
+        context.SetDiscreteState(self._phase_index, value.ravel())
+
+    def linear_updates(self, context: Context, run: int = 0) -> int:
+        """Linear updates applied before this step (run ``run``)."""
+        return int(self._phase_state(context)[run, 1])
 
     def measurement_update(
         self, context: Context, prior: Estimate, ranges: Ranges
     ) -> MeasurementUpdate | None:
-        if not ranges.valid.any():
-            return None
-        phase = self.phase(context)
-        if phase is Phase.LINEAR:
-            return self._start.update(prior, ranges)
-        sonars = ranges.sonars
-        if phase is Phase.PARTICLE:
-            x, P, nis, _ = self._cloud.posterior(context)
-        else:
+        phases = self.phases(context)
+        valid = ranges.valid
+        returned = valid[:, 0] | valid[:, 1]
+        linear = (phases == _LINEAR) & valid[:, 0] & valid[:, 1]
+        gaussian = (phases == _RANGE) & returned
+        particle = (phases == _PARTICLE) & returned
+        x, P = prior.x, prior.P
+        nis = gamma = None
+        # Each update copies the runs outside its mask, so they chain: a run's posterior is
+        # its own phase's. (A mask that holds no run skips its call: the same numbers.)
+        if linear.any():
+            Y, m, gamma = self._start.measurement(ranges, x)
+            x, P, nis = range_difference_update_runs(x, P, Y, m, gamma, ranges.q_s, linear)
+        if gaussian.any():
             R = ranges.covariance(self._R, prior.x)
-            x, P, nis = self._gaussian_update(
-                prior.x, prior.P, ranges.z, ranges.q_s, R, sonars=sonars
-            )
-        return MeasurementUpdate(x, P, nis, int(sonars.size))
+            x, P, nis_g = self._gaussian_update(x, P, ranges.z, ranges.q_s, R, valid, gaussian)
+            nis = nis_g if nis is None else np.where(gaussian, nis_g, nis)
+        if particle.any():
+            x_p, P_p, nis_p, _ = self._cloud.posterior(context)
+            B = self.batch_size
+            x = np.where(particle[:, np.newaxis], np.reshape(x_p, (B, 6)), x)
+            P = np.where(particle[:, np.newaxis, np.newaxis], np.reshape(P_p, (B, 6, 6)), P)
+            nis_p = np.reshape(nis_p, (B,))
+            nis = np.where(particle, nis_p, np.nan if nis is None else nis)
+        if nis is None:
+            return None
+        dof = np.where(phases == _LINEAR, self._dof_linear, valid.sum(axis=1))
+        return MeasurementUpdate(x, P, nis, dof, linear | gaussian | particle, gamma)
 
-    def needs_both_ranges(self, context: Context) -> bool:
-        return self.phase(context) is Phase.LINEAR
+    def needs_both_ranges(self, context: Context) -> np.ndarray:
+        return self.phases(context) == _LINEAR
 
     def filtered_estimate(self, context: Context) -> FilteredEstimate | None:
         """With late ranges in the particle phase, the cloud's own: stepped through the
-        window's ranges at their ping times, then this tick's."""
+        window's ranges at their ping times, then this tick's (one run)."""
         if self.window is None or self.phase(context) is not Phase.PARTICLE:
             return None
         x, P, nis, _ = self._cloud.posterior(context)
-        status = VALID if math.isfinite(nis) else self.arrival_status(context)
-        return FilteredEstimate(x, P, status, nis)
+        status = VALID if math.isfinite(nis) else self.arrival_status(context)[0]
+        return FilteredEstimate(
+            x[np.newaxis], P[np.newaxis], np.array([float(status)]), np.array([nis])
+        )
 
     def step_belief(self, context: Context, x: np.ndarray, P: np.ndarray, step) -> StepOutcome:
         """In the particle phase the particles take the ranges: the Gaussian summary only
         predicts (it serves the prior outputs)."""
-        particles = self.phase(context) is Phase.PARTICLE
-        return gaussian_step(self, context, x, P, step, with_ranges=not particles)
+        return gaussian_step(self, context, x, P, step, self.phases(context) != _PARTICLE)
 
     def _linear_updates(
-        self, context: Context, filtered: FilteredEstimate, ranges: Ranges
-    ) -> list[tuple[np.ndarray, float]]:
-        """This tick's applied linear updates as ``(q_s, Γ)``."""
+        self, context: Context, filtered: FilteredEstimate, ranges: Ranges, linear: np.ndarray
+    ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """This tick's applied linear updates as ``(q_s (B, 3), Γ (B), runs (B))``."""
         if self.window is not None:
             return [
-                (u.q_s, u.gamma) for o in self.window_outcomes(context) for u in o.updates
-                if u.new and u.status == VALID and u.gamma is not None
+                (u.q_s, u.gamma, u.new & (u.status == VALID) & linear)
+                for o in self.window_outcomes(context) for u in o.updates if u.gamma is not None
             ]  # fmt: skip
-        if filtered.applied and ranges.valid.all():
-            return [(ranges.q_s, self._start.measurement(ranges, filtered.x)[2])]
-        return []
+        runs = linear & filtered.applied & ranges.valid[:, 0] & ranges.valid[:, 1]
+        if not runs.any():
+            return []
+        return [(ranges.q_s, self._start.measurement(ranges, filtered.x)[2], runs)]
 
     def advance(
         self, context: Context, filtered: FilteredEstimate, discrete_state: DiscreteValues
     ) -> None:
-        phase = self.phase(context)
+        phases = self.phases(context)
+        done = self._phase_state(context)[:, 1]
+        applied = filtered.applied
+        linear = phases == _LINEAR
+        ranges = self.ranges(context)
+        updates = self._linear_updates(context, filtered, ranges, linear)
+        S = self._start.advance(context, filtered.P, updates, linear, discrete_state)
+        done = done + (linear & applied)
+        # After an applied update the policy decides (particles hand over only to a Gaussian
+        # update: without one they stay).
+        asked = applied & ((phases != _PARTICLE) | self._gaussian)
+        evidence = PhaseEvidence(
+            x=filtered.x, P=filtered.P, nis=filtered.nis, linear_updates=done, prior_share=S,
+            q_s=ranges.q_s, noise_std=self._noise_std, gaussian=self._gaussian,
+            particles=self._cloud is not None,
+        )  # fmt: skip
+        following, redraw = self._policy.next_phases(phases, evidence)
+        following = np.where(asked, following, phases)
+        redraw &= asked
+        state = np.empty((self.batch_size, 2))
+        state[:, 0] = following
+        state[:, 1] = done
+        discrete_state.set_value(self._phase_index, state.ravel())
+        to_particles = following == _PARTICLE
         timed = self.window is not None
-        done = self.linear_updates(context)
-        transition = Transition(phase)
-        if phase is Phase.LINEAR:
-            ranges = self.ranges(context)
-            updates = self._linear_updates(context, filtered, ranges)
-            S = self._start.advance(context, filtered, updates, discrete_state)
-            if filtered.applied:
-                done += 1
-                transition = self._policy.next_phase(
-                    phase, self._evidence(filtered, done, S, ranges)
-                )
-        elif filtered.applied and (
-            phase is not Phase.PARTICLE or self._gaussian_update is not None
-        ):
-            # (Particles hand over only to a Gaussian update: without one they stay.)
-            S = self._start.prior_share(context)
-            evidence = self._evidence(filtered, done, S, self.ranges(context))
-            transition = self._policy.next_phase(phase, evidence)
-        discrete_state.set_value(self._phase_index, np.array([float(transition.phase), done]))
-        if transition.phase is not Phase.PARTICLE:
-            if not (timed and phase is Phase.PARTICLE):
-                super().advance(context, filtered, discrete_state)
-            return
-        # The cloud writes the prediction: the Gaussian one is not computed.
-        if timed:
-            self._advance_window_particles(context, filtered, discrete_state, phase, transition)
-            return
-        if phase is Phase.PARTICLE:
-            self._cloud.advance(context, filtered, discrete_state)
-        elif transition.redraw_from_prior:
-            # The ranges contradict the Gaussian's prior: redraw from that prior, widened until
-            # this innovation is typical, and weigh the draw by this step's ranges.
-            prior = self.prior(context)
-            draw = (prior.x, prior.P * (filtered.nis / 2.0))
-            self._cloud.advance(context, filtered, discrete_state, draw, weigh_draw=True)
-        else:
-            self._cloud.advance(context, filtered, discrete_state, (filtered.x, filtered.P))
+        # The Gaussian prediction of every run (the cloud writes its runs' over it); with late
+        # ranges a run leaving its particles keeps the anchor the cloud wrote.
+        if not to_particles.all() and not (timed and phases[0] == _PARTICLE):
+            super().advance(context, filtered, discrete_state)
+        if to_particles.any():
+            self._advance_particles(context, filtered, discrete_state, phases, redraw, to_particles)
 
-    def _advance_window_particles(
+    def _advance_particles(
         self,
         context: Context,
         filtered: FilteredEstimate,
         discrete_state: DiscreteValues,
-        phase: Phase,
-        transition: Transition,
+        phases: np.ndarray,
+        redraw: np.ndarray,
+        runs: np.ndarray,
     ) -> None:
-        """With late ranges: the cloud moves its anchor on, or is drawn at the new anchor from
-        the Gaussian filter's belief there (widened by NIS/2 for a filter that lost the
-        target)."""
-        if phase is Phase.PARTICLE:
-            self._cloud.advance_window(context, discrete_state)
-            return
-        outcome = self.anchor_advance(context)
-        anchor = self.anchor(context) if outcome is None else outcome
-        scale = filtered.nis / 2.0 if transition.redraw_from_prior else 1.0
-        self._cloud.advance_window(context, discrete_state, (anchor.x, anchor.P * scale))
+        """The cloud's periodic update of the runs that carry particles after this step
+        (``runs``), writing their predictions: a run already on particles moves them on; a
+        run entering the particle phase draws them from ``N(draw_x, draw_P)``: its filtered
+        Gaussian (with late ranges, its belief at the new anchor), or, for a filter that lost
+        the target (``redraw``), its prior widened by NIS/2, the draw weighed by the step's
+        ranges."""
+        drawn = phases != _PARTICLE
+        scale = np.where(redraw, filtered.nis / 2.0, 1.0)[:, np.newaxis, np.newaxis]
+        if self.window is not None:
+            # Drawn at the new anchor from the Gaussian filter's belief there.
+            outcome = self.anchor_advance(context)
+            anchor = self.anchor(context) if outcome is None else outcome
+            draw_x, draw_P = anchor.x, anchor.P * scale
+        else:
+            # A run that lost the target redraws from its prior, widened until this
+            # innovation is typical; the others from their filtered Gaussian.
+            prior = self.prior(context)
+            lost = redraw[:, np.newaxis]
+            draw_x = np.where(lost, prior.x, filtered.x)
+            draw_P = np.where(lost[:, :, np.newaxis], prior.P, filtered.P) * scale
+        self._cloud_advance(context, filtered, discrete_state, runs, drawn, redraw, draw_x, draw_P)
 
-    def _evidence(
-        self, filtered: FilteredEstimate, done: int, S: np.ndarray, ranges: Ranges
-    ) -> PhaseEvidence:
-        return PhaseEvidence(
-            x=filtered.x,
-            P=filtered.P,
-            nis=filtered.nis,
-            linear_updates=done,
-            prior_share=S,
-            q_s=ranges.q_s,
-            noise_std=self._noise_std,
-            gaussian=self._gaussian_update is not None,
-            particles=self._cloud is not None,
+    def _cloud_advance(
+        self,
+        context: Context,
+        filtered: FilteredEstimate,
+        discrete_state: DiscreteValues,
+        runs: np.ndarray,
+        drawn: np.ndarray,
+        weigh: np.ndarray,
+        draw_x: np.ndarray,
+        draw_P: np.ndarray,
+    ) -> None:
+        """The cloud's step of the runs in ``runs`` (B): those in ``drawn`` (B) draw anew from
+        ``N(draw_x, draw_P)`` ((B, 6), (B, 6, 6)), weighed by the step's ranges where
+        ``weigh`` (B); the others move their particles on. The cloud steps one run for now:
+        this maps run 0 onto its calls (a batched cloud takes these arrays as they are)."""
+        if not runs[0]:
+            return
+        draw = (draw_x[0], draw_P[0]) if drawn[0] else None
+        if self.window is not None:
+            self._cloud.advance_window(context, discrete_state, draw)
+            return
+        one = FilteredEstimate(filtered.x[0], filtered.P[0], filtered.status[0], filtered.nis[0])
+        self._cloud.advance(context, one, discrete_state, draw, weigh_draw=bool(weigh[0]))
+
+
+class _RunOfOne:
+    """The host as the particle cloud reads it while the cloud steps one run: the filter
+    itself, its batch of one seen without the run axis (ranges, prior, vehicle motion and
+    the navigation's process noise); everything else, declarations included, is the
+    filter's."""
+
+    def __init__(self, host: RangeFilter) -> None:
+        object.__setattr__(self, "_host", host)
+        object.__setattr__(self, "vehicle_motion", _MotionOfOne(host.vehicle_motion))
+
+    def __getattr__(self, name: str):
+        return getattr(self._host, name)
+
+    def __setattr__(self, name: str, value) -> None:
+        setattr(self._host, name, value)
+
+    @property
+    def window(self):
+        window = self._host.window
+        return None if window is None else _WindowOfOne(window)
+
+    def ranges(self, context: Context) -> Ranges:
+        return self._host.ranges(context).run(0)
+
+    def prior(self, context: Context) -> Estimate:
+        prior = self._host.prior(context)
+        return Estimate(prior.x[0], prior.P[0])
+
+    def navigation_process_noise(self, context: Context) -> np.ndarray | None:
+        Q = self._host.navigation_process_noise(context)
+        return None if Q is None else Q[0]
+
+
+class _MotionOfOne:
+    """A vehicle-motion strategy's values of run 0, without the run axis."""
+
+    def __init__(self, motion) -> None:
+        self._motion = motion
+
+    @property
+    def state_ports(self):
+        return self._motion.state_ports
+
+    def offset(self, context: Context) -> np.ndarray:
+        return self._motion.offset(context)[0]
+
+    def acceleration(self, context: Context) -> np.ndarray:
+        return self._motion.acceleration(context)[0]
+
+
+class _WindowOfOne:
+    """The ping window's steps of run 0, without the run axis (the particle cloud's view)."""
+
+    def __init__(self, window) -> None:
+        self._window = window
+
+    def __getattr__(self, name: str):
+        return getattr(self._window, name)
+
+    def steps(self, context: Context, samples: np.ndarray, status: np.ndarray):
+        steps, current = self._window.steps(
+            context, samples[np.newaxis], np.asarray(status)[np.newaxis]
         )
+        return [step.run(0) for step in steps], current[0]

@@ -19,22 +19,28 @@ Either way a prediction is ``A (x − offset) + B acceleration`` in the stored f
 offset`` is :meth:`stored`), and a prior is ``stored + offset``: :meth:`offset` is ``X(k)``
 (navigation) or zero, and :meth:`acceleration` is ``a_W(k)`` (commanded) or zero. The
 particle phase moves its particles with the same two numbers.
+
+With ``batch_size`` B on the system every value holds B runs: offsets (B, 6), accelerations
+(B, 3), states (B, 6); the ports B·3 entries, row-major by run.
 """
 
 import numpy as np
 from pydrake.systems.framework import Context, InputPort, LeafSystem
 
-_ZERO3 = np.zeros(3)
-_ZERO6 = np.zeros(6)
+from drake_uuv.primitives.batch import per_run
 
 
 class CommandedMotion:
-    """The paper's prediction with the commanded acceleration; declares input ``u1_W`` (3)."""
+    """The paper's prediction with the commanded acceleration; declares input ``u1_W`` (3 a
+    run)."""
 
     name = "commanded"
 
     def __init__(self, system: LeafSystem) -> None:
-        self.acceleration_port = system.DeclareVectorInputPort("u1_W", 3)
+        self._B = system.batch_size
+        self.acceleration_port = system.DeclareVectorInputPort("u1_W", 3 * self._B)
+        self._zero = np.zeros((self._B, 6))
+        self._zero.flags.writeable = False
 
     @property
     def state_ports(self) -> list[InputPort]:
@@ -42,10 +48,10 @@ class CommandedMotion:
         return []
 
     def offset(self, context: Context) -> np.ndarray:
-        return _ZERO6
+        return self._zero
 
     def acceleration(self, context: Context) -> np.ndarray:
-        return self.acceleration_port.Eval(context)
+        return per_run(self.acceleration_port.Eval(context), self._B)
 
     def prior(self, context: Context, stored: np.ndarray) -> np.ndarray:
         return stored
@@ -57,24 +63,29 @@ class CommandedMotion:
 
 class NavigatedMotion:
     """The prediction of the target alone, the vehicle's state from its navigation; declares
-    inputs ``p_WU_nav``, ``v_WU_nav`` (3 each)."""
+    inputs ``p_WU_nav``, ``v_WU_nav`` (3 each a run)."""
 
     name = "navigation"
 
     def __init__(self, system: LeafSystem) -> None:
-        self._ports = [system.DeclareVectorInputPort(name, 3) for name in ("p_WU_nav", "v_WU_nav")]
+        self._B = system.batch_size
+        self._ports = [
+            system.DeclareVectorInputPort(name, 3 * self._B) for name in ("p_WU_nav", "v_WU_nav")
+        ]
+        self._zero = np.zeros((self._B, 3))
+        self._zero.flags.writeable = False
 
     @property
     def state_ports(self) -> list[InputPort]:
         return list(self._ports)
 
     def offset(self, context: Context) -> np.ndarray:
-        """``X = [p_WU, v_WU]`` at this step."""
-        p, v = (port.Eval(context) for port in self._ports)
-        return np.concatenate([p, v])
+        """``X = [p_WU, v_WU]`` at this step (B, 6)."""
+        p, v = (per_run(port.Eval(context), self._B) for port in self._ports)
+        return np.concatenate([p, v], axis=1)
 
     def acceleration(self, context: Context) -> np.ndarray:
-        return _ZERO3
+        return self._zero
 
     def prior(self, context: Context, stored: np.ndarray) -> np.ndarray:
         return stored + self.offset(context)

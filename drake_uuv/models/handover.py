@@ -58,6 +58,7 @@ from enum import IntEnum
 from typing import NamedTuple, Protocol
 
 import numpy as np
+from numba import njit
 
 _I6 = np.eye(6)
 
@@ -70,11 +71,19 @@ class Phase(IntEnum):
     PARTICLE = 2  # the posterior carried on particles
 
 
+# The phases as plain integers, for the arithmetic over runs (an enum member's lookup costs
+# more than the comparison it feeds).
+_RANGE, _LINEAR, _PARTICLE = int(Phase.RANGE), int(Phase.LINEAR), int(Phase.PARTICLE)
+
+
 @dataclass(frozen=True)
 class PhaseEvidence:
     """What a hand-over policy decides on, after an update the filter applied.
 
-    ``x``, ``P``: the step's filtered estimate; ``nis`` its update's NIS; ``linear_updates``:
+    One run's values, or a batch's with a leading run axis (for ``next_phases``: ``x``
+    (B, 6), ``P`` (B, 6, 6), ``nis`` (B), ``linear_updates`` (B), ``prior_share`` (B, 6, 6),
+    ``q_s`` (B, 3)). ``x``, ``P``: the step's filtered estimate; ``nis`` its update's NIS;
+    ``linear_updates``:
     linear updates applied so far (this one included); ``prior_share``: the prior's share
     ``S`` of the linear KF's covariance (:func:`prior_share_update`); ``q_s``: the world
     baseline; ``noise_std``: the per-sonar ``√(η/f)`` of the range means; ``gaussian``: the
@@ -118,6 +127,26 @@ class HandoverPolicy(Protocol):
 
     def next_phase(self, phase: Phase, evidence: PhaseEvidence) -> Transition: ...
 
+    def next_phases(
+        self, phases: np.ndarray, evidence: PhaseEvidence
+    ) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+def _batch_of_one(evidence: PhaseEvidence) -> PhaseEvidence:
+    x, P, q_s = _one_run(evidence.x, evidence.P, evidence.q_s)
+    return PhaseEvidence(
+        x=x, P=P, nis=np.array([float(evidence.nis)]),
+        linear_updates=np.array([evidence.linear_updates]),
+        prior_share=np.asarray(evidence.prior_share, dtype=float).reshape(1, 6, 6),
+        q_s=q_s, noise_std=evidence.noise_std, gaussian=evidence.gaussian,
+        particles=evidence.particles,
+    )  # fmt: skip
+
+
+def _one_transition(policy: HandoverPolicy, phase: Phase, evidence: PhaseEvidence) -> Transition:
+    phases, redraw = policy.next_phases(np.array([int(phase)]), _batch_of_one(evidence))
+    return Transition(Phase(int(phases[0])), bool(redraw[0]))
+
 
 @dataclass(frozen=True)
 class ThresholdHandover:
@@ -157,15 +186,47 @@ class ThresholdHandover:
             return False
         return float(np.trace(P[:3, :3])) <= self.position_variance_threshold
 
+    def handover_due_runs(self, P: np.ndarray, linear_steps_done: np.ndarray) -> np.ndarray:
+        """:meth:`handover_due` of each run (``P`` (B, 6, 6), counts (B))."""
+        due = (linear_steps_done >= self.min_linear_steps) & (
+            _trace_qq(P) <= self.position_variance_threshold
+        )
+        if self.max_linear_steps is not None:
+            due |= linear_steps_done >= self.max_linear_steps
+        return due
+
     def next_phase(self, phase: Phase, evidence: PhaseEvidence) -> Transition:
-        if phase is not Phase.LINEAR or not self.handover_due(evidence.P, evidence.linear_updates):
-            return Transition(phase)
-        return Transition(Phase.RANGE if evidence.gaussian else Phase.PARTICLE)
+        return _one_transition(self, phase, evidence)
+
+    def next_phases(
+        self, phases: np.ndarray, evidence: PhaseEvidence
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`next_phase` of each run: the next phases (B) and whether each redraws its
+        particles from its prior (never, here)."""
+        due = (phases == _LINEAR) & self.handover_due_runs(evidence.P, evidence.linear_updates)
+        target = Phase.RANGE if evidence.gaussian else Phase.PARTICLE
+        return np.where(due, int(target), phases), np.zeros(len(phases), dtype=bool)
 
 
 #: The NIS beyond which a bridged Gaussian filter is lost: the χ²(2) quantile of 1 − 10⁻⁶
 #: (−2 ln 10⁻⁶), about one false alarm per two thousand 500-step runs.
 LOST_NIS = 2.0 * math.log(1e6)
+
+
+def cross_range_angle_runs(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> np.ndarray:
+    """:func:`cross_range_angle` of each run: ``x`` (B, 6), ``P`` (B, 6, 6), ``q_s`` (B, 3);
+    returns (B, 2) [rad]."""
+    q = x[:, :3]
+    half = 0.5 * q_s
+    r = np.stack([q + half, q - half], axis=1)  # (B, 2, 3)
+    P_qq = P[:, :3, :3]
+    trace = P_qq[:, 0, 0] + P_qq[:, 1, 1] + P_qq[:, 2, 2]
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        d = np.sqrt((r * r).sum(axis=2))
+        u = r / d[:, :, np.newaxis]
+        across = trace[:, np.newaxis] - ((u @ P_qq) * u).sum(axis=2)
+        angle = np.sqrt(np.maximum(across, 0.0)) / d
+    return np.where(d < 1e-9, math.inf, angle)
 
 
 def cross_range_angle(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> np.ndarray:
@@ -175,30 +236,40 @@ def cross_range_angle(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> np.ndarr
     ``tr P⊥ᵢ = tr P_qq − uᵢᵀ P_qq uᵢ`` the position variance across it. A range below 1 nm
     gives an infinite angle.
     """
-    q = np.asarray(x, dtype=float)[:3]
-    half = 0.5 * np.asarray(q_s, dtype=float).reshape(3)
-    P_qq = np.asarray(P, dtype=float)[:3, :3]
-    trace = float(np.trace(P_qq))
-    out = np.empty(2)
-    for i, r in enumerate((q + half, q - half)):
-        d = float(np.linalg.norm(r))
-        if d < 1e-9:
-            out[i] = math.inf
-            continue
-        u = r / d
-        out[i] = math.sqrt(max(trace - float(u @ P_qq @ u), 0.0)) / d
-    return out
+    x, P, q_s = _one_run(x, P, q_s)
+    return cross_range_angle_runs(x, P, q_s)[0]
+
+
+def _one_run(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> tuple:
+    return (
+        np.asarray(x, dtype=float).reshape(1, 6),
+        np.asarray(P, dtype=float).reshape(1, 6, 6),
+        np.asarray(q_s, dtype=float).reshape(1, 3),
+    )
+
+
+def second_order_range_error_runs(
+    x: np.ndarray, P: np.ndarray, q_s: np.ndarray, angles: np.ndarray | None = None
+) -> np.ndarray:
+    """:func:`second_order_range_error` of each run (B, 2) [m] (``angles``: the runs'
+    :func:`cross_range_angle_runs`, when known)."""
+    if angles is None:
+        angles = cross_range_angle_runs(x, P, q_s)
+    q = x[:, :3]
+    half = 0.5 * q_s
+    r = np.stack([q + half, q - half], axis=1)
+    return 0.5 * angles * angles * np.sqrt((r * r).sum(axis=2))
 
 
 def second_order_range_error(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> np.ndarray:
     """``tr(P⊥ᵢ)/(2 dᵢ)`` for both sonars (shape (2,)) [m]: the mean of the quadratic term of
     ``d(q + e) = d + uᵀe + (|e|² − (uᵀe)²)/(2d) + …`` under ``e ~ N(0, P_qq)``, the range a
     linearisation at the estimate drops (``= θ² d / 2`` with :func:`cross_range_angle`)."""
-    q = np.asarray(x, dtype=float)[:3]
-    half = 0.5 * np.asarray(q_s, dtype=float).reshape(3)
-    angles = cross_range_angle(x, P, q_s)
-    distances = np.array([np.linalg.norm(q + half), np.linalg.norm(q - half)])
-    return 0.5 * angles * angles * distances
+    return second_order_range_error_runs(*_one_run(x, P, q_s))[0]
+
+
+def _trace_qq(P: np.ndarray) -> np.ndarray:
+    return P[:, 0, 0] + P[:, 1, 1] + P[:, 2, 2]
 
 
 def prior_share_predict(S: np.ndarray, A: np.ndarray) -> np.ndarray:
@@ -279,18 +350,52 @@ class HandoverRule:
         """Whether a filter begins with linear-KF updates (``max_linear_steps != 0``)."""
         return self.max_linear_steps is None or self.max_linear_steps > 0
 
+    def prior_forgotten_runs(
+        self, P: np.ndarray, linear_steps_done: np.ndarray, prior_covariance: np.ndarray
+    ) -> np.ndarray:
+        """:meth:`prior_forgotten` of each run (``P``, ``prior_covariance`` (B, 6, 6), counts
+        (B))."""
+        forgotten = (linear_steps_done >= self.min_linear_steps) & (
+            _trace_qq(prior_covariance) <= self.prior_share * _trace_qq(P)
+        )
+        if self.max_linear_steps is not None:
+            forgotten |= linear_steps_done >= self.max_linear_steps
+        return forgotten
+
     def prior_forgotten(
         self, P: np.ndarray, linear_steps_done: int, prior_covariance: np.ndarray
     ) -> bool:
         """Test 1 (or ``max_linear_steps`` reached): the KF's covariance rests on its data.
 
         ``prior_covariance`` is the prior's share ``S`` of ``P``."""
-        if self.max_linear_steps is not None and linear_steps_done >= self.max_linear_steps:
-            return True
-        if linear_steps_done < self.min_linear_steps:
-            return False
-        prior = float(np.trace(np.asarray(prior_covariance, dtype=float)[:3, :3]))
-        return prior <= self.prior_share * float(np.trace(np.asarray(P, dtype=float)[:3, :3]))
+        P = np.asarray(P, dtype=float).reshape(1, 6, 6)
+        S = np.asarray(prior_covariance, dtype=float).reshape(1, 6, 6)
+        return bool(self.prior_forgotten_runs(P, np.array([linear_steps_done]), S)[0])
+
+    def gaussian_holds_runs(
+        self,
+        x: np.ndarray,
+        P: np.ndarray,
+        q_s: np.ndarray,
+        noise_std: np.ndarray | None = None,
+        angles: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """:meth:`gaussian_holds` of each run (``angles``: their
+        :func:`cross_range_angle_runs`, when known)."""
+        holds = np.ones(len(x), dtype=bool)
+        if self.angle_tolerance is None and self.second_order_tolerance is None:
+            return holds
+        if angles is None:
+            angles = cross_range_angle_runs(x, P, q_s)
+        if self.angle_tolerance is not None:
+            holds &= np.all(angles <= self.angle_tolerance, axis=1)
+        if self.second_order_tolerance is None:
+            return holds
+        if noise_std is None:
+            raise ValueError("noise_std: needed with second_order_tolerance, got None")
+        limit = self.second_order_tolerance * np.asarray(noise_std, dtype=float)
+        error = second_order_range_error_runs(x, P, q_s, angles)
+        return holds & np.all(error <= limit, axis=1)
 
     def gaussian_holds(
         self,
@@ -301,30 +406,47 @@ class HandoverRule:
     ) -> bool:
         """Test 2 and, with ``second_order_tolerance``, the second-order test (``noise_std``
         the per-sonar ``√(η/f)``): a Gaussian describes the posterior ``N(x, P)``."""
-        if self.angle_tolerance is not None and not np.all(
-            cross_range_angle(x, P, q_s) <= self.angle_tolerance
-        ):
-            return False
-        if self.second_order_tolerance is None:
-            return True
-        if noise_std is None:
-            raise ValueError("noise_std: needed with second_order_tolerance, got None")
-        limit = self.second_order_tolerance * np.asarray(noise_std, dtype=float)
-        return bool(np.all(second_order_range_error(x, P, q_s) <= limit))
+        return bool(self.gaussian_holds_runs(*_one_run(x, P, q_s), noise_std)[0])
+
+    def fallback_due_runs(
+        self, x: np.ndarray, P: np.ndarray, q_s: np.ndarray, angles: np.ndarray | None = None
+    ) -> np.ndarray:
+        """:meth:`fallback_due` of each run."""
+        if not self.particle_bridge:
+            return np.zeros(len(x), dtype=bool)
+        if angles is None:
+            angles = cross_range_angle_runs(x, P, q_s)
+        limit = self.fallback_factor * float(self.angle_tolerance)
+        return np.any(angles > limit, axis=1)
 
     def fallback_due(self, x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> bool:
         """With ``particle_bridge``: a Gaussian filter's ``N(x, P)`` has become too wide for a
         Gaussian (a cross-range angle above ``fallback_factor · angle_tolerance``)."""
-        if not self.particle_bridge:
-            return False
-        limit = self.fallback_factor * float(self.angle_tolerance)
-        return bool(np.any(cross_range_angle(x, P, q_s) > limit))
+        return bool(self.fallback_due_runs(*_one_run(x, P, q_s))[0])
 
-    def lost(self, nis: float) -> bool:
+    def lost(self, nis: float | np.ndarray) -> bool | np.ndarray:
         """With ``particle_bridge``: a Gaussian filter's innovation is beyond any chance under
         its own covariance (NIS above :data:`LOST_NIS`), as when it slips onto the mirror
-        solution while its covariance stays narrow."""
-        return self.particle_bridge and nis > LOST_NIS
+        solution while its covariance stays narrow (per run for an array of NIS)."""
+        return self.particle_bridge & (nis > LOST_NIS)
+
+    def handover_due_runs(
+        self,
+        P: np.ndarray,
+        linear_steps_done: np.ndarray,
+        *,
+        x: np.ndarray,
+        q_s: np.ndarray,
+        prior_covariance: np.ndarray,
+        noise_std: np.ndarray | None = None,
+        angles: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """:meth:`handover_due` of each run."""
+        due = self.prior_forgotten_runs(P, linear_steps_done, prior_covariance)
+        due &= self.gaussian_holds_runs(x, P, q_s, noise_std, angles)
+        if self.max_linear_steps is not None:
+            due |= linear_steps_done >= self.max_linear_steps
+        return due
 
     def handover_due(
         self,
@@ -338,11 +460,14 @@ class HandoverRule:
     ) -> bool:
         """True if the next update should be a range update (``prior_covariance`` is ``S``,
         ``noise_std`` the per-sonar ``√(η/f)``, needed with ``second_order_tolerance``)."""
-        if self.max_linear_steps is not None and linear_steps_done >= self.max_linear_steps:
-            return True
-        if not self.prior_forgotten(P, linear_steps_done, prior_covariance):
-            return False
-        return self.gaussian_holds(x, P, q_s, noise_std)
+        x, P, q_s = _one_run(x, P, q_s)
+        S = np.asarray(prior_covariance, dtype=float).reshape(1, 6, 6)
+        return bool(
+            self.handover_due_runs(
+                P, np.array([linear_steps_done]), x=x, q_s=q_s, prior_covariance=S,
+                noise_std=noise_std,
+            )[0]
+        )  # fmt: skip
 
     def next_phase(self, phase: Phase, evidence: PhaseEvidence) -> Transition:
         """Linear: to the Gaussian update when :meth:`handover_due`, else to particles once
@@ -350,22 +475,89 @@ class HandoverRule:
         Particles: back to the Gaussian update when :meth:`gaussian_holds` on them. Gaussian
         (with the bridge): to particles when :meth:`fallback_due`, or redrawn from the prior
         when :meth:`lost`."""
+        return _one_transition(self, phase, evidence)
+
+    def next_phases(
+        self, phases: np.ndarray, evidence: PhaseEvidence
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`next_phase` of each run (``evidence`` with a leading run axis): the next
+        phases (B) and the runs that redraw their particles from their prior (B). One
+        compiled loop over the runs (:func:`_rule_next_phases`), the tests' arithmetic of
+        the methods above."""
         e = evidence
-        if phase is Phase.LINEAR:
-            if e.gaussian and self.handover_due(
-                e.P, e.linear_updates, x=e.x, q_s=e.q_s, prior_covariance=e.prior_share,
-                noise_std=e.noise_std,
-            ):  # fmt: skip
-                return Transition(Phase.RANGE)
-            if e.particles and self.prior_forgotten(e.P, e.linear_updates, e.prior_share):
-                return Transition(Phase.PARTICLE)
-            return Transition(Phase.LINEAR)
-        if phase is Phase.PARTICLE:
-            if e.gaussian and self.gaussian_holds(e.x, e.P, e.q_s, e.noise_std):
-                return Transition(Phase.RANGE)
-            return Transition(Phase.PARTICLE)
-        if self.fallback_due(e.x, e.P, e.q_s):
-            return Transition(Phase.PARTICLE)
-        if self.lost(e.nis):
-            return Transition(Phase.PARTICLE, redraw_from_prior=True)
-        return Transition(Phase.RANGE)
+        B = len(phases)
+        following = np.empty(B, dtype=np.intp)
+        redraw = np.empty(B, dtype=np.bool_)
+        _rule_next_phases(
+            np.asarray(phases, dtype=np.intp), e.x, e.P, np.asarray(e.nis, dtype=float),
+            np.asarray(e.linear_updates, dtype=float), e.prior_share, e.q_s,
+            np.asarray(e.noise_std, dtype=float).reshape(2),
+            math.nan if self.angle_tolerance is None else float(self.angle_tolerance),
+            float(self.prior_share), float(self.min_linear_steps),
+            -1.0 if self.max_linear_steps is None else float(self.max_linear_steps),
+            math.nan if self.second_order_tolerance is None else float(self.second_order_tolerance),
+            bool(self.particle_bridge), float(self.fallback_factor), bool(e.gaussian),
+            bool(e.particles), following, redraw,
+        )  # fmt: skip
+        return following, redraw
+
+
+@njit(cache=True, error_model="numpy")
+def _rule_next_phases(
+    phases, x, P, nis, done, S, q_s, noise_std, angle_tolerance, share, min_steps, max_steps,
+    second_order, bridge, fallback_factor, gaussian, particles, following, redraw,
+):  # fmt: skip
+    """:meth:`HandoverRule.next_phases` of each run (NaN tolerances: no such test; a negative
+    ``max_steps``: none)."""
+    angles = np.empty(2)
+    for r in range(len(phases)):
+        # the cross-range angles and the second-order test at the estimate
+        trace = P[r, 0, 0] + P[r, 1, 1] + P[r, 2, 2]
+        small = True
+        for i in range(2):
+            sign = 0.5 if i == 0 else -0.5
+            v0 = x[r, 0] + sign * q_s[r, 0]
+            v1 = x[r, 1] + sign * q_s[r, 1]
+            v2 = x[r, 2] + sign * q_s[r, 2]
+            d = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+            if d < 1e-9:
+                angles[i] = np.inf
+            else:
+                u0, u1, u2 = v0 / d, v1 / d, v2 / d
+                uPu = 0.0
+                for a, ua in ((0, u0), (1, u1), (2, u2)):
+                    uPu += ua * (P[r, a, 0] * u0 + P[r, a, 1] * u1 + P[r, a, 2] * u2)
+                across = trace - uPu
+                across = across if (across > 0.0 or across != across) else 0.0
+                angles[i] = np.sqrt(across) / d
+            if second_order == second_order:
+                if not (0.5 * angles[i] * angles[i] * d <= second_order * noise_std[i]):
+                    small = False
+        holds = small
+        if angle_tolerance == angle_tolerance:
+            holds = holds and angles[0] <= angle_tolerance and angles[1] <= angle_tolerance
+        maxed = max_steps >= 0.0 and done[r] >= max_steps
+        forgotten = maxed or (
+            done[r] >= min_steps and S[r, 0, 0] + S[r, 1, 1] + S[r, 2, 2] <= share * trace
+        )
+        redraw[r] = False
+        phase = phases[r]
+        if phase == 1:  # linear
+            if gaussian and (maxed or (forgotten and holds)):
+                following[r] = 0
+            elif particles and forgotten:
+                following[r] = 2
+            else:
+                following[r] = 1
+        elif phase == 2:  # particles
+            following[r] = 0 if (gaussian and holds) else 2
+        else:
+            limit = fallback_factor * angle_tolerance
+            fallback = bridge and (angles[0] > limit or angles[1] > limit)
+            if fallback:
+                following[r] = 2
+            elif bridge and nis[r] > LOST_NIS:
+                following[r] = 2
+                redraw[r] = True
+            else:
+                following[r] = 0

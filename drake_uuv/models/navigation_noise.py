@@ -170,16 +170,21 @@ def sound_speed_floor(q: np.ndarray, epsilon: float) -> np.ndarray:
 
 
 def range_attitude_covariance(q: np.ndarray, q_s: np.ndarray, Sigma: np.ndarray) -> np.ndarray:
-    """``J Σ_θ Jᵀ`` (2×2): the extra noise of the two ranges ``|q ± ½ q_s|`` that a filter
-    predicts with a baseline turned by the attitude error (:func:`range_attitude_jacobian`)."""
-    q = np.asarray(q, dtype=float)[:3]
+    """``J Σ_θ Jᵀ`` (…×2×2): the extra noise of the two ranges ``|q ± ½ q_s|`` that a filter
+    predicts with a baseline turned by the attitude error (:func:`range_attitude_jacobian`);
+    ``q`` (…×3, or a relative state …×6), ``q_s`` (…×3), ``Sigma`` (…×3×3)."""
+    q = np.asarray(q, dtype=float)[..., :3]
     half = 0.5 * np.asarray(q_s, dtype=float)
-    J = range_attitude_jacobian(np.stack([q + half, q - half]), q_s)
-    return J @ Sigma @ J.T
+    J = range_attitude_jacobian(np.stack([q + half, q - half], axis=-2), q_s)
+    return J @ Sigma @ np.swapaxes(J, -1, -2)
 
 
-def difference_attitude_variance(q: np.ndarray, q_s: np.ndarray, Sigma: np.ndarray) -> float:
+def difference_attitude_variance(
+    q: np.ndarray, q_s: np.ndarray, Sigma: np.ndarray
+) -> float | np.ndarray:
     """``(q_s × q)ᵀ Σ_θ (q_s × q)``: the extra variance of the paper's ``Y = q_sᵀ q`` that a
-    filter predicts with the turned baseline ``Exp(θ) q_s`` (``(θ × q_s)ᵀ q = θ · (q_s × q)``)."""
-    g = np.cross(np.asarray(q_s, dtype=float), np.asarray(q, dtype=float)[:3])
-    return float(g @ Sigma @ g)
+    filter predicts with the turned baseline ``Exp(θ) q_s`` (``(θ × q_s)ᵀ q = θ · (q_s × q)``);
+    over leading axes of ``q`` (…×3 or …×6), ``q_s`` (…×3), ``Sigma`` (…×3×3)."""
+    g = np.cross(np.asarray(q_s, dtype=float), np.asarray(q, dtype=float)[..., :3])
+    value = (g[..., np.newaxis, :] @ Sigma @ g[..., :, np.newaxis])[..., 0, 0]
+    return float(value) if np.ndim(value) == 0 else value

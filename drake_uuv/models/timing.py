@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drake_uuv.models.measurement import range_jacobian, range_measurement
+from drake_uuv.models.measurement import MIN_RANGE, range_jacobian, range_measurement
 
 _TOLERANCE = 1e-9
 
@@ -153,3 +153,46 @@ def carried_range(
         rows.append(range_jacobian(y, q_s)[sonar] @ G)
     g = rows[1] - rows[0]
     return float(values[1] - values[0]), float(g @ P_z @ g)
+
+
+# ---------------------------------------------------------------------- a batch of runs
+
+
+def transition_runs(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`transition` of each run's ``τ`` (B): ``G`` (B, 6, 9), ``B(τ)`` (B, 6, 3)."""
+    tau = np.asarray(tau, dtype=float)
+    n = len(tau)
+    eye = np.eye(3)
+    B = np.zeros((n, 6, 3))
+    B[:, :3] = (0.5 * tau * tau)[:, np.newaxis, np.newaxis] * eye
+    B[:, 3:] = tau[:, np.newaxis, np.newaxis] * eye
+    G = np.zeros((n, 6, 9))
+    G[:, :, :6] = np.eye(6)
+    G[:, :3, 3:6] = tau[:, np.newaxis, np.newaxis] * eye
+    G[:, :, 6:] = -B
+    return G, B
+
+
+def carried_range_runs(
+    z: np.ndarray,
+    P_z: np.ndarray,
+    sonar: np.ndarray,
+    early: tuple[np.ndarray, np.ndarray, np.ndarray],
+    late: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`carried_range` of each run: ``z`` (B, 9), ``P_z`` (B, 9, 9), ``sonar`` (B) the
+    sonar carried, ``early``/``late`` ``(G (B, 6, 9), c (B, 6), q_s (B, 3))``; returns the
+    changes and their variances (B each)."""
+    sign = np.where(sonar == 0, 0.5, -0.5)[:, np.newaxis]
+    values, rows = [], []
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        for G, c, q_s in (early, late):
+            y = (G @ z[:, :, np.newaxis])[:, :, 0] + c
+            v = y[:, :3] + sign * q_s
+            d = np.sqrt((v * v).sum(axis=1))
+            u = v / np.maximum(d, MIN_RANGE)[:, np.newaxis]
+            values.append(d)
+            rows.append((u[:, np.newaxis, :] @ G[:, :3, :])[:, 0, :])
+        g = rows[1] - rows[0]
+        variance = (g[:, np.newaxis, :] @ P_z @ g[:, :, np.newaxis])[:, 0, 0]
+    return values[1] - values[0], variance

@@ -139,7 +139,7 @@ def test_with_the_paper_s_timing_the_prediction_adds_the_navigation_s_process_no
     A, Q = double_integrator(T)[0], process_noise_covariance(W, T)
     kf = RangeDifferenceKalmanFilter(config(PaperKf), setting=setting(navigation_errors=ERRORS))
     context = fixed_context(kf, **inputs())
-    P = kf.filtered(context).P
+    P = kf.filtered(context).P[0]
     extra = process_noise_covariance(commanded_acceleration_noise(a, sigma_theta), T)
     after = discrete_update(kf, context, 1).reshape(6, 6)
     assert_allclose(after, A @ P @ A.T + Q + extra, rtol=1e-12)
@@ -151,7 +151,7 @@ def test_with_the_paper_s_timing_the_prediction_adds_the_navigation_s_process_no
     values = {**inputs(), "p_WU_nav": np.zeros(3), "v_WU_nav": v}
     del values["u1_W"]
     context = fixed_context(nav, **values)
-    P = nav.filtered(context).P
+    P = nav.filtered(context).P[0]
     velocity = (ERRORS.velocity_noise**2 + ERRORS.velocity_bias**2) * np.eye(3)
     velocity += commanded_acceleration_noise(v, sigma_theta)
     expected = A @ P @ A.T + Q

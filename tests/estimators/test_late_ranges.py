@@ -35,19 +35,24 @@ class LinearProbe(RelativeStateEstimator):
     """A throwaway estimator: sonar i measures ``cᵢᵀ q`` with variance ηᵢ."""
 
     def measurement_update(self, context, prior: Estimate, ranges: Ranges):
-        rows = ranges.sonars
+        # One run (late ranges step one run at a time): its batch of one, row 0.
+        rows = ranges.run(0).sonars
         if rows.size == 0:
             return None
         H = np.zeros((rows.size, 6))
         H[:, :3] = C[rows]
         R = np.diag(ETA_UNEQUAL[rows])
-        S = H @ prior.P @ H.T + R
-        K = prior.P @ H.T @ np.linalg.inv(S)
-        nu = ranges.z[rows] - H @ prior.x
-        x = prior.x + K @ nu
+        x_prior, P_prior = prior.x[0], prior.P[0]
+        S = H @ P_prior @ H.T + R
+        K = P_prior @ H.T @ np.linalg.inv(S)
+        nu = ranges.z[0][rows] - H @ x_prior
+        x = x_prior + K @ nu
         I_KH = np.eye(6) - K @ H
-        P = I_KH @ prior.P @ I_KH.T + K @ R @ K.T
-        return MeasurementUpdate(x, P, float(nu @ np.linalg.solve(S, nu)), int(rows.size))
+        P = I_KH @ P_prior @ I_KH.T + K @ R @ K.T
+        nis = np.array([float(nu @ np.linalg.solve(S, nu))])
+        return MeasurementUpdate(
+            x[np.newaxis], P[np.newaxis], nis, np.array([rows.size]), np.ones(1, dtype=bool)
+        )
 
 
 def _probe(schedule: PingSchedule) -> LinearProbe:

@@ -88,8 +88,8 @@ def test_update_is_the_numpy_prediction_seeded_by_the_port():
     assert_array_equal(system.cloud.particles(after), moved)
     assert_array_equal(system.cloud.log_weights(after), log_next)
     x, P = weighted_moments(moved, np.exp(log_next))
-    assert_allclose(system.prior(after).x, x, rtol=1e-14)
-    assert_allclose(system.prior(after).P, P, rtol=1e-12)
+    assert_allclose(system.prior(after).x[0], x, rtol=1e-14)
+    assert_allclose(system.prior(after).P[0], P, rtol=1e-12)
     # Same draw, same cloud; another draw, another cloud.
     assert_array_equal(system.cloud.particles(after_update(system, context)), moved)
     system.GetInputPort("particle_seed").FixValue(context, [0.26])

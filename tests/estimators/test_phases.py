@@ -62,7 +62,7 @@ def test_the_prior_share_follows_the_linear_kf() -> None:
     after = after_update(system, context)
     assert system.phase(after) is Phase.LINEAR
     S = prior_share_predict(prior_share_update(P0, P, Q_S, gamma), A)
-    assert_allclose(system.start.prior_share(after), S, rtol=1e-12)
+    assert_allclose(system.start.prior_share(after)[0], S, rtol=1e-12)
 
 
 @pytest.mark.parametrize(("kind", "after"), [("ekf", Phase.RANGE), ("ukf", Phase.RANGE),
@@ -122,8 +122,8 @@ def test_a_bridged_gaussian_filter_draws_particles_where_its_gaussian_fails(kind
     assert_array_equal(system.cloud.particles(after), moved)
     assert_array_equal(system.cloud.log_weights(after), log_next)
     mean, cov = weighted_moments(moved, np.exp(log_next))
-    assert_allclose(system.prior(after).x, mean, rtol=1e-14)
-    assert_allclose(system.prior(after).P, cov, rtol=1e-12)
+    assert_allclose(system.prior(after).x[0], mean, rtol=1e-14)
+    assert_allclose(system.prior(after).P[0], cov, rtol=1e-12)
 
 
 def particle_phase_context(system, spread: float):
@@ -155,8 +155,8 @@ def test_a_bridged_filter_takes_its_gaussian_back_when_the_particles_are_narrow(
     assert system.phase(next_context) is after and system.linear_updates(next_context) == 7
     if after is Phase.RANGE:  # the Gaussian filter predicts from the particles' posterior
         x_next, P_next = predict(x, P, A_W, A, B, process_noise_covariance(W, T))
-        assert_allclose(system.prior(next_context).x, x_next, rtol=1e-13)
-        assert_allclose(system.prior(next_context).P, P_next, rtol=1e-12)
+        assert_allclose(system.prior(next_context).x[0], x_next, rtol=1e-13)
+        assert_allclose(system.prior(next_context).P[0], P_next, rtol=1e-12)
 
 
 @pytest.mark.parametrize(("scale", "after"), [(1.0, Phase.RANGE), (12.0, Phase.PARTICLE)])
@@ -175,8 +175,8 @@ def test_a_bridged_ukf_falls_back_to_particles_when_its_gaussian_widens(scale, a
     assert (angle > 0.3) is (after is Phase.PARTICLE)
     next_context = after_update(system, context)
     assert system.phase(next_context) is after and system.linear_updates(next_context) == 9
-    if after is Phase.PARTICLE:
-        moved, _, _ = drawn_and_predicted(x, P)
+    if after is Phase.PARTICLE:  # drawn from the filter's own posterior (to the bit)
+        moved, _, _ = drawn_and_predicted(x_hat, P_hat)
         assert_array_equal(system.cloud.particles(next_context), moved)
 
 
@@ -191,6 +191,8 @@ def test_a_lost_bridged_filter_redraws_from_its_widened_prior():
     system.set_prior(context, x_prior, P_prior)
     x, P, nis = ukf_range_update(x_prior, P_prior, means(), Q_S, R)
     assert nis > LOST_NIS and np.max(cross_range_angle(x, P, Q_S)) < 0.3  # not too wide
+    assert filtered(system, context)[3] == pytest.approx(nis, rel=1e-12)
+    nis = filtered(system, context)[3]  # the filter's own, to the bit, widens the draw
     next_context = after_update(system, context)
     assert system.phase(next_context) is Phase.PARTICLE
     rng = seed_rng()

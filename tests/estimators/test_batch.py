@@ -1,0 +1,227 @@
+"""A batch of runs through one estimator is, bit for bit, each run alone: the paper's KF and
+the raw-range filters (EKF, IEKF, UKF) on random batches that mix their phases (linear start
+and Gaussian), gated and accepted updates, dropped ranges, late ranges at their ping times, and
+a run that failed (NaN)."""
+
+import numpy as np
+import pytest
+
+from drake_uuv.estimators import EstimatorSetting, RangeDifferenceKalmanFilter, RangeFilter
+from drake_uuv.models.handover import Phase
+from drake_uuv.models.measurement import (
+    DROPPED,
+    NO_ARRIVAL,
+    OUT_OF_BEAM,
+    VALID,
+    range_measurement,
+)
+from drake_uuv.models.timing import PingSchedule
+from drake_uuv.scenario import Ekf, Iekf, NavigationErrors, PaperKf, Ukf
+from drake_uuv.testing import assert_batch_equals_runs, fixed_context
+from tests.conftest import ETA_UNEQUAL, T, W
+
+F = 3
+B_BODY = np.array([-0.6, 1.1, 0.5])
+X_TRUE = np.array([-2.0, -2.0, 0.3, 0.1, 0.0, -0.05])
+ERRORS = NavigationErrors(
+    attitude_noise=np.radians([0.5, 0.5, 2.0]), heading_bias=np.radians(2.0),
+    velocity_noise=0.01, velocity_bias=0.005,
+)  # fmt: skip
+KINDS = {"kf": PaperKf, "ekf": Ekf, "iekf": Iekf, "ukf": Ukf}
+# The raw-range filters without particles (the cloud steps one run for now).
+NO_PARTICLES = dict(particle_bridge=False)
+
+
+def setting(errors: bool) -> EstimatorSetting:
+    extra = dict(navigation_errors=ERRORS, sound_speed_error=0.004) if errors else {}
+    return EstimatorSetting(
+        time_step=T, acceleration_covariance=W, noise_variances=ETA_UNEQUAL,
+        samples_per_step=F, baseline_B=B_BODY, **extra,
+    )  # fmt: skip
+
+
+def maker(kind: str, errors: bool = False, **fields):
+    config = KINDS[kind](gate_probability=0.99, **fields)
+    cls = RangeDifferenceKalmanFilter if kind == "kf" else RangeFilter
+
+    def make(batch_size: int):
+        return cls(config, setting=setting(errors), batch_size=batch_size)
+
+    return make
+
+
+def rotation(rng: np.random.Generator) -> np.ndarray:
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    angle = rng.uniform(0.0, 1.0)
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def random_runs(system_make, B: int, seed: int, *, navigated: bool = False, nan_run=None):
+    """Random inputs and states of B runs: priors near and far from the truth (accepted and
+    gated updates), some sonars dropped, phases mixed for a raw-range filter."""
+    rng = np.random.default_rng(seed)
+    system = system_make(1)
+    samples, status, attitudes = [], [], []
+    for _ in range(B):
+        R_WB = rotation(rng)
+        d = range_measurement(X_TRUE, R_WB @ B_BODY)
+        s = d[:, None] + 0.1 * rng.standard_normal((2, F))
+        code = rng.choice([VALID, VALID, VALID, DROPPED, OUT_OF_BEAM], size=2)
+        s[code != VALID] = np.nan
+        samples.append(s.ravel())
+        status.append(code.astype(float))
+        attitudes.append(R_WB.ravel())
+    inputs = dict(range_samples=np.array(samples), sonar_status=np.array(status))
+    inputs["R_WB_nav"] = np.array(attitudes)
+    if navigated:
+        inputs["p_WU_nav"] = rng.normal(size=(B, 3))
+        inputs["v_WU_nav"] = rng.normal(size=(B, 3))
+    else:
+        inputs["u1_W"] = rng.normal(size=(B, 3))
+    offsets = rng.choice([0.05, 0.3, 3.0], size=B)  # accepted, some gated
+    x = X_TRUE + offsets[:, None] * rng.standard_normal((B, 6))
+    M = rng.normal(size=(B, 6, 6))
+    P = 0.05 * M @ M.transpose(0, 2, 1) + 0.02 * np.eye(6)
+    states = [x, P.reshape(B, 36)]
+    if isinstance(system, RangeFilter):
+        share = rng.choice([0.001, 0.5], size=B)  # prior forgotten or not
+        states.append((share[:, None, None] * P).reshape(B, 36))
+        phases = rng.choice([Phase.LINEAR, Phase.RANGE], size=B).astype(float)
+        states.append(np.stack([phases, rng.integers(0, 5, size=B)], axis=1).astype(float))
+    if nan_run is not None:
+        states[0][nan_run] = np.nan
+        states[1][nan_run] = np.nan
+    return inputs, states
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+@pytest.mark.parametrize("B", [1, 2, 5])
+def test_a_batch_step_is_each_run_alone(kind: str, B: int) -> None:
+    make = maker(kind, **({} if kind == "kf" else NO_PARTICLES))
+    for seed in range(3):
+        inputs, states = random_runs(make, B, seed)
+        assert_batch_equals_runs(make, inputs, states, time=2.0)
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+def test_with_the_error_model_and_navigated_motion_a_batch_is_each_run(kind: str) -> None:
+    fields = dict(vehicle_motion="navigation")
+    if kind != "kf":
+        fields.update(NO_PARTICLES)
+    make = maker(kind, errors=True, **fields)
+    inputs, states = random_runs(make, 4, 7, navigated=True)
+    assert_batch_equals_runs(make, inputs, states, time=2.0)
+    make = maker(kind, errors=True, **({} if kind == "kf" else NO_PARTICLES))
+    inputs, states = random_runs(make, 4, 8)
+    assert_batch_equals_runs(make, inputs, states, time=2.0)
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+def test_a_failed_run_leaves_the_others_alone(kind: str) -> None:
+    """One run's state is NaN: nothing raises, and the other runs' bits are theirs alone."""
+    make = maker(kind, **({} if kind == "kf" else NO_PARTICLES))
+    inputs, states = random_runs(make, 4, 3, nan_run=2)
+    assert_batch_equals_runs(make, inputs, states, time=2.0)
+    system = make(4)
+    context = fixed_context(system, **{k: v.ravel() for k, v in inputs.items()})
+    for group, value in enumerate(states):
+        context.SetDiscreteState(group, value.ravel())
+    x = system.GetOutputPort("x_TU_hat").Eval(context).reshape(4, 6)
+    assert np.isnan(x[2]).all() and np.isfinite(x[[0, 1, 3]]).all()
+    after = system.EvalUniquePeriodicDiscreteUpdate(context).get_vector(0).value()
+    assert np.isfinite(after.reshape(4, 6)[[0, 1, 3]]).all()
+
+
+def test_the_batch_mixes_phases_gates_and_drops() -> None:
+    """The random batches above hold what they are meant to: runs in the linear start and in
+    the Gaussian phase, updated, gated and only predicted, in one batch."""
+    make = maker("ekf", **NO_PARTICLES)
+    inputs, states = random_runs(make, 12, 1)
+    system = make(12)
+    context = fixed_context(system, **{k: v.ravel() for k, v in inputs.items()})
+    for group, value in enumerate(states):
+        context.SetDiscreteState(group, value.ravel())
+    status = system.GetOutputPort("measurement_status").Eval(context)
+    phases = system.phases(context)
+    assert {Phase.LINEAR, Phase.RANGE} <= set(phases.tolist())
+    assert {0.0, 4.0} <= set(status.tolist())  # VALID and GATED
+    assert set(status.tolist()) & {float(DROPPED), float(OUT_OF_BEAM)}
+
+
+def test_batch_size_is_checked_and_particles_take_one_run() -> None:
+    with pytest.raises(ValueError, match=r"^batch_size: must be an integer ≥ 1, got 0"):
+        maker("kf")(0)
+    with pytest.raises(ValueError, match=r"^batch_size: a filter that may carry particles"):
+        RangeFilter(Ekf(), setting=setting(False), batch_size=2)
+
+
+SCHEDULE = PingSchedule(T, (0.1, 0.3), 0.6)  # both ranges two ticks late: D = 2
+
+
+def timed_maker(kind: str, errors: bool = False, **fields):
+    config = KINDS[kind](gate_probability=0.99, **fields)
+    cls = RangeDifferenceKalmanFilter if kind == "kf" else RangeFilter
+    extra = dict(navigation_errors=ERRORS, sound_speed_error=0.004) if errors else {}
+    timed = EstimatorSetting(
+        time_step=T, acceleration_covariance=W, noise_variances=ETA_UNEQUAL,
+        samples_per_step=F, baseline_B=B_BODY, ping_schedule=SCHEDULE, **extra,
+    )  # fmt: skip
+
+    def make(batch_size: int):
+        return cls(config, setting=timed, batch_size=batch_size)
+
+    return make
+
+
+def random_timed_runs(make, B: int, seed: int, tick: int, *, navigated: bool = False):
+    """Random runs with late ranges: the window's stored ranges (arrived, dropped, not yet
+    arrived, at random ping offsets), attitudes and motion, and this tick's arrivals."""
+    rng = np.random.default_rng(seed)
+    inputs, states = random_runs(make, B, seed, navigated=navigated)
+    D = SCHEDULE.window
+    slot = 4 + 2 * F
+    slots = np.full((B, D, slot), np.nan)
+    attitudes = np.empty((B, D, 9))
+    for r in range(B):
+        for k in range(D):
+            R_WB = rotation(rng)
+            attitudes[r, k] = R_WB.ravel()
+            d = range_measurement(X_TRUE, R_WB @ B_BODY)
+            code = rng.choice([VALID, VALID, DROPPED, NO_ARRIVAL], size=2).astype(float)
+            slots[r, k, :2] = code
+            slots[r, k, 2:4] = rng.choice([0.1, 0.3, 0.3], size=2)
+            values = d[:, None] + 0.1 * rng.standard_normal((2, F))
+            values[code != VALID] = np.nan
+            slots[r, k, 4:] = values.ravel()
+    motion = rng.normal(size=(B, D, 6 if navigated else 3))
+    # This tick's arrivals: the ranges of step tick − 2, at their ping times (or none).
+    arrived = rng.random((B, 2)) < 0.8
+    ping = np.where(arrived, (tick - 2) * T + np.array([0.1, 0.3]), np.nan)
+    inputs["sonar_status"] = np.where(arrived, inputs["sonar_status"], float(NO_ARRIVAL))
+    inputs["ping_time"] = ping
+    window = [slots.reshape(B, -1), attitudes.reshape(B, -1), motion.reshape(B, -1)]
+    states = states[:2] + window + states[2:]
+    return inputs, states
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+@pytest.mark.parametrize("B", [1, 3])
+def test_with_late_ranges_a_batch_step_is_each_run_alone(kind: str, B: int) -> None:
+    fields = {} if kind == "kf" else NO_PARTICLES
+    make = timed_maker(kind, **fields)
+    for seed in range(2):
+        inputs, states = random_timed_runs(make, B, seed, tick=6)
+        assert_batch_equals_runs(make, inputs, states, time=6 * T)
+
+
+@pytest.mark.parametrize("kind", ["kf", "ukf"])
+def test_with_late_ranges_errors_navigation_and_a_failed_run(kind: str) -> None:
+    fields = dict(vehicle_motion="navigation", **({} if kind == "kf" else NO_PARTICLES))
+    make = timed_maker(kind, errors=True, **fields)
+    inputs, states = random_timed_runs(make, 4, 5, tick=7, navigated=True)
+    assert_batch_equals_runs(make, inputs, states, time=7 * T)
+    states[0][1] = np.nan  # run 1 failed
+    states[1][1] = np.nan
+    assert_batch_equals_runs(make, inputs, states, time=7 * T)
