@@ -165,8 +165,9 @@ def make_uuv_diagram(
     :class:`~drake_uuv.primitives.run_noise.RunNoise` source (named like the port) whose run
     i draws from run i's seed alone (a pure function of seed, source name and step: the same
     draw at a tick's publish and updates, whatever the batch or the other sources; Drake's
-    ``RandomSource`` draws one stream for its whole vector). Loggers are ``log_<name>`` for each logged signal, sampled once
-    per step so column k holds the value at step k, before that step's update.
+    ``RandomSource`` draws one stream for its whole vector). Loggers are ``log_<name>`` for
+    each logged signal, sampled once per step: column k holds the value at step k, before
+    that step's update.
 
     ``batch_size`` B builds every system for B runs at once (ports and states hold B runs
     row-major); a system of yours in ``systems`` must step B runs too (its ``batch_size``).
