@@ -15,6 +15,8 @@ def _run(args: argparse.Namespace) -> int:
     if args.realtime_rate < 0:
         raise UsageError(f"--realtime-rate: must be ≥ 0, got {args.realtime_rate}")
     out = Path(args.out)
+    if args.record is not None and Path(args.record).exists():
+        raise UsageError(f"--record: {args.record!r} exists (a recording is a new folder)")
     meshcat = None
     if args.meshcat:
         from pydrake.geometry import StartMeshcat
@@ -24,6 +26,10 @@ def _run(args: argparse.Namespace) -> int:
     result = ClosedLoopSimulation(scenario, meshcat=meshcat).run(realtime_rate=args.realtime_rate)
     result.save(out)
     write_run_figures(result.log, scenario, out)
+    if args.record is not None:
+        from drake_uuv.recordings import write_recording
+
+        write_recording(args.record, result.log, scenario)
     m = result.metrics
     print(
         f"{scenario.steps} steps in {m['wall_time_s']:.2f} s: position RMSE "
@@ -53,4 +59,11 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         default=0.0,
         help="pace the simulation at this multiple of real time (0: as fast as possible; "
         "with --meshcat, try 10)",
+    )
+    parser.add_argument(
+        "--record",
+        default=None,
+        metavar="PATH",
+        help="also write the run as a ROS 2 bag (MCAP) in the new folder PATH, for drake-uuv "
+        "replay and ROS tools (drake_uuv/recordings/layout.py)",
     )

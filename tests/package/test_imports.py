@@ -45,6 +45,7 @@ LAYERS: list[set[str]] = [
         ROOT,
     },  # runs of it (the facade exports ClosedLoopSimulation)
     {"analysis", "studies", "visualization"},  # many runs, pictures
+    {"recordings", "hardware"},  # field data: ROS bags replayed; the loop's halves over LCM
     {"cli"},  # the command line, on top of everything
 ]
 
@@ -64,6 +65,7 @@ SUBLAYERS: dict[str, list[set[str]]] = {
     "cli": [
         {"options"},
         {"run", "diagram", "animate", "montecarlo", "compare", "variants", "scenarios"},
+        {"replay", "onboard", "vehicle"},
         {ROOT},
         {"__main__"},
     ],
