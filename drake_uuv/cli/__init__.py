@@ -9,9 +9,10 @@ later (a full disk, a folder removed during a run) is one line naming the path, 
 One module per subcommand (:mod:`~drake_uuv.cli.run`, :mod:`~drake_uuv.cli.diagram`,
 :mod:`~drake_uuv.cli.animate`, :mod:`~drake_uuv.cli.montecarlo`,
 :mod:`~drake_uuv.cli.compare`, :mod:`~drake_uuv.cli.variants`,
-:mod:`~drake_uuv.cli.scenarios`, :mod:`~drake_uuv.cli.replay`), each with its parser (``add_subcommand``) and handler; the
-shared options and :class:`UsageError` are in :mod:`~drake_uuv.cli.options`. The command line
-is the top layer: nothing else in the package imports it.
+:mod:`~drake_uuv.cli.scenarios`, :mod:`~drake_uuv.cli.replay`), each with its parser
+(``add_subcommand``) and handler; the shared options and :class:`UsageError` are in
+:mod:`~drake_uuv.cli.options`. The command line is the top layer: nothing else in the package
+imports it.
 """
 
 import argparse

@@ -169,7 +169,8 @@ def read_recording(
         raise RecordingError(f"recording {str(path)!r}: not a ROS bag ({reason})") from e
 
 
-def _read(bag: _Bag, t: float, f: int, topics: Topics, commands: bool) -> Recording:
+def _check_topics(bag: _Bag, topics: Topics, commands: bool) -> None:
+    """Refuses a missing topic, a wrong type or no mounting topic, before reading any."""
     for i, topic in enumerate(topics.sonars):
         bag.check(topic, (RANGE,), f"sonar {i + 1}'s ranges")
     bag.check(topics.navigation, (ODOMETRY,), "the navigated pose and twist")
@@ -184,17 +185,18 @@ def _read(bag: _Bag, t: float, f: int, topics: Topics, commands: bool) -> Record
             f"sonar_2); its topics: {present}"
         )
     bag.check(topics.tf_static, (TF,), "the sonars' mounting")
-    offset, baseline = _mounting(bag, topics.tf_static)
 
+
+def _read(bag: _Bag, t: float, f: int, topics: Topics, commands: bool) -> Recording:
+    _check_topics(bag, topics, commands)
+    offset, baseline = _mounting(bag, topics.tf_static)
     navigation = bag.read(topics.navigation)
     attitude = bag.read(topics.attitude) if topics.attitude is not None else None
     acceleration = bag.read(topics.acceleration) if commands else None
     sonars = [_sonar(bag, topic) for topic in topics.sonars]
-    for topic, read in [(topics.navigation, navigation)] + list(
-        zip(topics.sonars, sonars, strict=True)
-    ):
-        if len(read.stamps) == 0:
-            raise bag.fail(f"topic {topic} has no messages")
+    named = zip((topics.navigation, *topics.sonars), (navigation, *sonars), strict=True)
+    for topic in (topic for topic, read in named if len(read.stamps) == 0):
+        raise bag.fail(f"topic {topic} has no messages")
     clocked = [navigation, *sonars] + [r for r in (attitude, acceleration) if r is not None]
     start = min(int(r.stamps[0]) for r in clocked if len(r.stamps))
     end = max(int(r.stamps[-1]) for r in clocked if len(r.stamps))
@@ -205,7 +207,6 @@ def _read(bag: _Bag, t: float, f: int, topics: Topics, commands: bool) -> Record
             f"(time_step {t:g} s)"
         )
     ticks = start + step * np.arange((end - start) // step + 1, dtype=np.int64)
-
     p, R, v_B, w_B = _odometry(navigation.messages)
     at = _latest(navigation.stamps, ticks)
     R_WB = R[at]
@@ -220,7 +221,6 @@ def _read(bag: _Bag, t: float, f: int, topics: Topics, commands: bool) -> Record
         linear = np.array([_xyz(m.accel.linear) for m in acceleration.messages])
         held = _latest(acceleration.stamps, ticks, before=-1)
         u1_W = np.where(held[:, None] >= 0, linear[np.maximum(held, 0)], 0.0)
-
     offsets, latency = _schedule(sonars, start, step)
     schedule = PingSchedule(t, offsets, latency)
     samples = np.full((len(ticks), 2, f), np.nan)

@@ -149,11 +149,46 @@ def write_recording(
     steps = len(log["k"])
     ticks = start_ns + nanoseconds(np.arange(steps) * t)
     latency = int(nanoseconds(scenario.sonar.latency))
+    messages = _vehicle(make, log, scenario, topics, ticks)
+    messages += _ranges(make, log, scenario, topics, ticks, latency)
+    messages += _truth(make, log, topics, ticks)
+    messages += _estimate(make, log, topics, ticks)
+
+    connections = {
+        RANGE: [*topics.sonars],
+        RANGE64: [Topics.precise(s) for s in topics.sonars],
+        ODOMETRY: [topics.navigation, topics.truth_vehicle, topics.truth_target, topics.estimate],
+        ACCELERATION: [topics.acceleration],
+        TWIST: [topics.angular_velocity],
+        TF: [topics.tf_static],
+    }
+    messages.sort(key=lambda m: m[1])  # a bag is in log-time order
+    with Writer(path, version=8, storage_plugin=STORAGES[storage]) as writer:
+        writer.set_custom_data("drake_uuv.seed", str(scenario.random_seed))
+        handle = {
+            topic: writer.add_connection(topic, msgtype, typestore=store)
+            for msgtype, names in connections.items()
+            for topic in names
+        }
+        for topic, time_ns, message in messages:
+            msgtype = message.__msgtype__
+            writer.write(handle[topic], time_ns, store.serialize_cdr(message, msgtype))
+    return path
+
+
+def _vehicle(
+    make: _Messages,
+    log: Mapping[str, np.ndarray],
+    scenario: Scenario,
+    topics: Topics,
+    ticks: np.ndarray,
+) -> list[tuple[str, int, object]]:
+    """What the vehicle knows of itself: the sonars' mounting, its navigation, its commands."""
+    store, steps = make.store, len(ticks)
     R_nav = log["R_WB_nav"].reshape(steps, 3, 3)
     q_nav = quaternion_from_matrices(R_nav)
     v_nav_B = np.einsum("kji,kj->ki", R_nav, log["v_WU_nav"])
     b = np.asarray(scenario.sonar.baseline, dtype=float)
-
     messages: list[tuple[str, int, object]] = []
     transforms = [
         make.TransformStamped(
@@ -179,30 +214,7 @@ def write_recording(
         twist = make.Twist(linear=make.vector(np.zeros(3)), angular=make.vector(log["u2_W"][k]))
         rate = store.types[TWIST](make.header(stamp, WORLD_FRAME), twist)
         messages.append((topics.angular_velocity, stamp, rate))
-    messages += _ranges(make, log, scenario, topics, ticks, latency)
-    messages += _truth(make, log, topics, ticks)
-    messages += _estimate(make, log, topics, ticks)
-
-    connections = {
-        RANGE: [*topics.sonars],
-        RANGE64: [Topics.precise(s) for s in topics.sonars],
-        ODOMETRY: [topics.navigation, topics.truth_vehicle, topics.truth_target, topics.estimate],
-        ACCELERATION: [topics.acceleration],
-        TWIST: [topics.angular_velocity],
-        TF: [topics.tf_static],
-    }
-    messages.sort(key=lambda m: m[1])  # a bag is in log-time order
-    with Writer(path, version=8, storage_plugin=STORAGES[storage]) as writer:
-        writer.set_custom_data("drake_uuv.seed", str(scenario.random_seed))
-        handle = {
-            topic: writer.add_connection(topic, msgtype, typestore=store)
-            for msgtype, names in connections.items()
-            for topic in names
-        }
-        for topic, time_ns, message in messages:
-            msgtype = message.__msgtype__
-            writer.write(handle[topic], time_ns, store.serialize_cdr(message, msgtype))
-    return path
+    return messages
 
 
 def _ranges(

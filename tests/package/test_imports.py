@@ -44,8 +44,8 @@ LAYERS: list[set[str]] = [
         "diagnostics",
         ROOT,
     },  # runs of it (the facade exports ClosedLoopSimulation)
-    {"analysis", "studies", "visualization"},  # many runs, pictures
-    {"recordings", "hardware"},  # field data: ROS bags replayed; the loop's halves over LCM
+    # Many runs, pictures; field data (ROS bags replayed, the loop's halves over LCM).
+    {"analysis", "studies", "visualization", "recordings", "hardware"},
     {"cli"},  # the command line, on top of everything
 ]
 
