@@ -3,8 +3,13 @@
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from drake_uuv.cli.options import UsageError, add_command, scenario_from_args
+
+if TYPE_CHECKING:
+    from drake_uuv.scenario import Scenario
+    from drake_uuv.simulation import SimulationResult
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -15,6 +20,8 @@ def _run(args: argparse.Namespace) -> int:
     if args.realtime_rate < 0:
         raise UsageError(f"--realtime-rate: must be ≥ 0, got {args.realtime_rate}")
     out = Path(args.out)
+    if args.lcm is not None and args.meshcat:
+        raise UsageError("--lcm: draws no live scene, drop --meshcat")
     if args.record is not None and Path(args.record).exists():
         raise UsageError(f"--record: {args.record!r} exists (a recording is a new folder)")
     meshcat = None
@@ -23,7 +30,11 @@ def _run(args: argparse.Namespace) -> int:
 
         meshcat = StartMeshcat()
         print(f"Meshcat is serving the live scene at {meshcat.web_url()}")
-    result = ClosedLoopSimulation(scenario, meshcat=meshcat).run(realtime_rate=args.realtime_rate)
+    if args.lcm is not None:
+        result = _run_over_lcm(scenario, args)
+    else:
+        simulation = ClosedLoopSimulation(scenario, meshcat=meshcat)
+        result = simulation.run(realtime_rate=args.realtime_rate)
     result.save(out)
     write_run_figures(result.log, scenario, out)
     if args.record is not None:
@@ -42,6 +53,16 @@ def _run(args: argparse.Namespace) -> int:
     if meshcat is not None and sys.stdin.isatty():
         input("The scene stays up until you press Enter. ")
     return 0
+
+
+def _run_over_lcm(scenario: "Scenario", args: argparse.Namespace) -> "SimulationResult":
+    """The run as its two halves over LCM in this process (drake_uuv/hardware/)."""
+    from drake_uuv.hardware import SplitError, run_lcm
+
+    try:
+        return run_lcm(scenario, args.lcm)
+    except SplitError as e:
+        raise UsageError(f"--lcm: {e}") from e
 
 
 def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
@@ -66,4 +87,11 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         metavar="PATH",
         help="also write the run as a ROS 2 bag (MCAP) in the new folder PATH, for drake-uuv "
         "replay and ROS tools (drake_uuv/recordings/layout.py)",
+    )
+    parser.add_argument(
+        "--lcm",
+        default=None,
+        metavar="URL",
+        help="run the loop as its onboard and vehicle halves over LCM in this process, in "
+        "lockstep (e.g. memq://): the same run (drake_uuv/hardware/)",
     )
