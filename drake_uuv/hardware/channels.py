@@ -7,10 +7,13 @@ hardware and its navigation, or their simulation). Each signal one half reads fr
 travels on the channel of the system producing it, ``DRAKE_UUV_<SYSTEM>``, as Drake's own
 ``drake::lcmt_scope`` (``utime``, the step's time in µs; ``size``; ``value``, the signals end
 to end in the order of :data:`drake_uuv.signals.SIGNALS`, each row-major as on its port).
-For the paper's scenario (:func:`channels`):
+The channels (:func:`channels`; the paper's scenario sends only those the paper's systems
+read, ``R_WB_nav``, ``range_samples`` and ``sonar_status`` one way, ``u2_W`` and ``u1_B`` the
+other):
 
-- ``DRAKE_UUV_NAVIGATION`` (vehicle → onboard): ``p_WU_nav`` (3), ``v_WU_nav`` (3),
-  ``R_WB_nav`` (9): the navigated state of the sonars' midpoint U in the world W (z up).
+- ``DRAKE_UUV_NAVIGATION`` (vehicle → onboard): ``p_WU_nav`` (3) and ``v_WU_nav`` (3) for an
+  estimator of ``vehicle_motion: navigation``, ``R_WB_nav`` (9, row-major): the navigated
+  state of the sonars' midpoint U in the world W (z up) and the attitude, body to world.
 - ``DRAKE_UUV_SONAR`` (vehicle → onboard): ``range_samples`` (2f, sonar 1's then sonar 2's,
   NaN without a return), ``sonar_status`` (2: 0 valid, 1 dropped, 2 out of beam, 3 out of
   range, 5 no arrival), and with late ranges ``ping_time`` (2, each range's ping time [s]).
