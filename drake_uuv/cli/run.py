@@ -38,9 +38,9 @@ def _run(args: argparse.Namespace) -> int:
     result.save(out)
     write_run_figures(result.log, scenario, out)
     if args.record is not None:
-        from drake_uuv.recordings import write_recording
+        from drake_uuv.recordings import record_run
 
-        write_recording(args.record, result.log, scenario)
+        record_run(args.record, result.log, scenario)
     m = result.metrics
     print(
         f"{scenario.steps} steps in {m['wall_time_s']:.2f} s: position RMSE "

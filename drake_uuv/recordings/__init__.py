@@ -9,7 +9,11 @@ through ``rosbags`` (pure Python: no ROS install).
 from drake_uuv.recordings.layout import RecordingError, Topics, load_topics
 from drake_uuv.recordings.reader import Recording, read_recording
 from drake_uuv.recordings.replay import RecordingSource, make_replay_diagram, replay
-from drake_uuv.recordings.writer import write_recording
+from drake_uuv.recordings.writer import (
+    navigation_at_initialization,
+    record_run,
+    write_recording,
+)
 
 __all__ = [
     "Recording",
@@ -18,6 +22,8 @@ __all__ = [
     "Topics",
     "load_topics",
     "make_replay_diagram",
+    "navigation_at_initialization",
+    "record_run",
     "read_recording",
     "replay",
     "write_recording",

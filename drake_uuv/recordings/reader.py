@@ -60,7 +60,8 @@ class Recording:
     (N×3; ``u1_W`` zero without a commands topic), ``range_samples`` (N×2f, sonar 1's then
     sonar 2's), ``sonar_status`` (N×2), ``ping_time`` (N×2, seconds from ``start_ns``; NaN
     with NO_ARRIVAL). ``baseline`` b (3) from the mounting, ``ping_offsets`` (2) and
-    ``latency`` [s] from the stamps; ``truth`` the recorded truth at each tick (``p_WU``,
+    ``latency`` [s] from the stamps; ``initial`` the navigation the estimator starts from;
+    ``truth`` the recorded truth at each tick (``p_WU``,
     ``v_WU``, ``R_WB``, ``p_WT``, ``v_WT``) or empty; ``warnings`` what was mended.
     """
 
@@ -80,6 +81,9 @@ class Recording:
     truth: dict[str, np.ndarray] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     has_commands: bool = True
+    # The navigation the estimator starts from (rows of p_WU_nav, v_WU_nav, R_WB_nav):
+    # the first navigation message when two share the first stamp, else step 0's.
+    initial: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def steps(self) -> int:
@@ -215,6 +219,15 @@ def _read(bag: _Bag, t: float, f: int, topics: Topics, commands: bool) -> Record
     # From base_link to U, the sonars' midpoint.
     p_WU = p[at] + np.einsum("kij,j->ki", R_WB, offset)
     v_WU = np.einsum("kij,kj->ki", R_WB, v_B[at] + np.cross(w_B[at], offset))
+    initial = {"p_WU_nav": p_WU[0], "v_WU_nav": v_WU[0], "R_WB_nav": R_WB[0].ravel()}
+    if len(navigation.stamps) > 1 and navigation.stamps[0] == navigation.stamps[1]:
+        # Two messages at the first stamp: the first is the state the estimator starts from.
+        R0 = R_WB[0] if attitude is not None else R[0]
+        initial = {
+            "p_WU_nav": p[0] + R0 @ offset,
+            "v_WU_nav": R0 @ (v_B[0] + np.cross(w_B[0], offset)),
+            "R_WB_nav": R0.ravel(),
+        }
 
     u1_W = np.zeros((len(ticks), 3))
     if acceleration is not None and len(acceleration.stamps):
@@ -250,6 +263,7 @@ def _read(bag: _Bag, t: float, f: int, topics: Topics, commands: bool) -> Record
         truth=truth,
         warnings=bag.warnings,
         has_commands=commands,
+        initial=initial,
     )
 
 

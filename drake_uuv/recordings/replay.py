@@ -15,7 +15,13 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    DiagramBuilder,
+    DiscreteValues,
+    LeafSystem,
+)
 from pydrake.systems.primitives import LogVectorOutput
 
 from drake_uuv.diagram import UuvDiagram
@@ -55,8 +61,11 @@ class RecordingSource(LeafSystem):
         - u1_W
 
     At time ``t`` each port holds row ``k = round(t / time_step)`` of the recording's array of
-    its name (:class:`~drake_uuv.recordings.reader.Recording`), the last row after the end; it
-    depends on time only. ``batch_size`` must be 1: a recording is one run.
+    its name (:class:`~drake_uuv.recordings.reader.Recording`), the last row after the end.
+    Before the diagram's initialization (discrete state ``started`` 0, set to 1 by an
+    initialization event) the navigation's ports hold the recording's ``initial`` navigation
+    instead: what an estimator's initialization reads, as in the run. ``batch_size`` must be
+    1: a recording is one run.
     """
 
     def __init__(self, recording: Recording, *, batch_size: int = 1) -> None:
@@ -66,17 +75,27 @@ class RecordingSource(LeafSystem):
         self.batch_size = 1
         self._t = recording.time_step
         self._last = recording.steps - 1
+        self._started = self.DeclareDiscreteState(1)
+        self.DeclareInitializationDiscreteUpdateEvent(self._start)
         for name in SOURCE_SIGNALS:
             rows = np.asarray(getattr(recording, name), dtype=float).reshape(recording.steps, -1)
+            initial = recording.initial.get(name)
             self.DeclareVectorOutputPort(
                 name,
                 BasicVector(rows.shape[1]),
-                lambda context, out, rows=rows: out.SetFromVector(rows[self._tick(context)]),
-                {self.time_ticket()},
+                lambda context, out, rows=rows, initial=initial: out.SetFromVector(
+                    self._row(context, rows, initial)
+                ),
+                {self.time_ticket(), self.xd_ticket()},
             )
 
-    def _tick(self, context: Context) -> int:
-        return min(round(context.get_time() / self._t), self._last)
+    def _start(self, context: Context, discrete_state: DiscreteValues) -> None:
+        discrete_state.set_value(self._started, [1.0])
+
+    def _row(self, context: Context, rows: np.ndarray, initial: np.ndarray | None) -> np.ndarray:
+        if initial is not None and context.get_discrete_state(self._started)[0] == 0.0:
+            return initial
+        return rows[min(round(context.get_time() / self._t), self._last)]
 
 
 def replay_scenario(scenario: Scenario, recording: Recording) -> Scenario:

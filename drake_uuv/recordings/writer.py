@@ -16,6 +16,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from drake_uuv.diagram import make_uuv_diagram
 from drake_uuv.models.measurement import NO_ARRIVAL, OUT_OF_RANGE, VALID
 from drake_uuv.recordings.layout import (
     ACCELERATION,
@@ -39,6 +40,7 @@ from drake_uuv.scenario import Scenario
 STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
 
 _SECOND = 1_000_000_000
+_NAVIGATION = ("p_WU_nav", "v_WU_nav", "R_WB_nav")
 
 
 def typestore() -> Typestore:
@@ -126,8 +128,13 @@ def write_recording(
     storage: str = "mcap",
     start_ns: int = 0,
     topics: Topics | None = None,
+    initial_navigation: Mapping[str, np.ndarray] | None = None,
 ) -> Path:
     """Writes a run's ``log`` (of ``scenario``) at ``path`` as a ROS 2 bag (MCAP or sqlite3).
+
+    ``initial_navigation`` (``p_WU_nav``, ``v_WU_nav``, ``R_WB_nav``), when given, is the
+    navigation the estimator started from (:func:`navigation_at_initialization`): written as
+    the first navigation message, at the first step's stamp, before the step's own.
 
     Step k is stamped ``start_ns + k t``. Each range is one ``sensor_msgs/msg/Range`` stamped
     with its ping time and logged when it arrived (ping time + latency); a return the sonar
@@ -149,7 +156,16 @@ def write_recording(
     steps = len(log["k"])
     ticks = start_ns + nanoseconds(np.arange(steps) * t)
     latency = int(nanoseconds(scenario.sonar.latency))
-    messages = _vehicle(make, log, scenario, topics, ticks)
+    messages = []
+    if initial_navigation is not None:
+        start = {name: np.asarray(initial_navigation[name])[None] for name in _NAVIGATION}
+        R = start["R_WB_nav"].reshape(1, 3, 3)
+        v_B = R[0].T @ start["v_WU_nav"][0]
+        message = make.odometry(
+            int(ticks[0]), BODY_FRAME, start["p_WU_nav"][0], quaternion_from_matrices(R)[0], v_B
+        )
+        messages.append((topics.navigation, int(ticks[0]), message))
+    messages += _vehicle(make, log, scenario, topics, ticks)
     messages += _ranges(make, log, scenario, topics, ticks, latency)
     messages += _truth(make, log, topics, ticks)
     messages += _estimate(make, log, topics, ticks)
@@ -174,6 +190,26 @@ def write_recording(
             msgtype = message.__msgtype__
             writer.write(handle[topic], time_ns, store.serialize_cdr(message, msgtype))
     return path
+
+
+def navigation_at_initialization(scenario: Scenario) -> dict[str, np.ndarray]:
+    """What the run's estimator starts from (its initialization event reads the navigation
+    before the navigation's own initialization latches its biases): the navigation's outputs
+    on the seeded context before ``Simulator.Initialize``, as a run of ``scenario`` has it."""
+    built = make_uuv_diagram(scenario, log=False)
+    context = built.diagram.CreateDefaultContext()
+    built.set_random_context(context, scenario.random_seed)
+    navigation = built.systems["navigation"]
+    mine = navigation.GetMyContextFromRoot(context)
+    return {name: navigation.GetOutputPort(name).Eval(mine).copy() for name in _NAVIGATION}
+
+
+def record_run(path: str | Path, log: Mapping[str, np.ndarray], scenario: Scenario) -> Path:
+    """Writes a run of ``scenario`` (its ``log``) as :func:`write_recording` does, with the
+    navigation its estimator started from: a replay then starts where the run did."""
+    return write_recording(
+        path, log, scenario, initial_navigation=navigation_at_initialization(scenario)
+    )
 
 
 def _vehicle(

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from drake_uuv.cli import main
-from drake_uuv.recordings import read_recording, replay, write_recording
+from drake_uuv.recordings import read_recording, record_run, replay, write_recording
 from drake_uuv.scenario import load_scenario
 from drake_uuv.simulation import ClosedLoopSimulation
 from tests.recordings.dive import BASELINE, EPOCH_NS, MIDPOINT, Dive, paper_kf, write_dive
@@ -157,15 +157,12 @@ def test_record_then_replay_reproduces_the_paper_run(tmp_path, capsys) -> None:
 
 @pytest.mark.slow
 def test_record_then_replay_reproduces_late_ranges(tmp_path) -> None:
-    # realistic's ping offsets (0, 0.25 s) and latency (0.2 s) come back from the stamps.
-    # Without the navigation's biases: with them, the run's estimator starts from a
-    # navigated velocity no step logs (its initialization reads the navigation before the
-    # biases latch), which a recording cannot hold.
-    overrides = ["estimator=Ekf", "steps=200", "steady_state_start=100",
-                 "navigation.heading_bias_deg=0", "navigation.velocity_bias=0"]  # fmt: skip
+    # realistic's ping offsets (0, 0.25 s) and latency (0.2 s) come back from the stamps, and
+    # its estimator starts from the navigation at initialization (before the biases latch).
+    overrides = ["estimator=Ekf", "steps=200", "steady_state_start=100"]
     scenario = load_scenario("realistic", overrides)
     run = ClosedLoopSimulation(scenario).run()
-    bag = write_recording(tmp_path / "bag", run.log, scenario, storage="sqlite3")
+    bag = record_run(tmp_path / "bag", run.log, scenario)
     replayed = replay(bag, load_scenario("realistic", overrides + ["sonar.latency=0"]))
     assert replayed.scenario.sonar.ping_offsets == [0.0, 0.25]
     assert replayed.scenario.sonar.latency == 0.2
@@ -173,3 +170,7 @@ def test_record_then_replay_reproduces_late_ranges(tmp_path) -> None:
         np.testing.assert_allclose(
             replayed.log[name], run.log[name], rtol=0, atol=1e-9, err_msg=name
         )
+    # Without the state at initialization the replay starts from step 0's navigation.
+    plain = replay(write_recording(tmp_path / "plain", run.log, scenario), scenario)
+    assert np.abs(plain.log["x_TU_hat"][0, 3:]).max() == 0.0
+    assert np.abs(run.log["x_TU_hat"][0, 3:]).max() > 1e-3
