@@ -114,6 +114,7 @@ class _Bag:
         for connection in reader.connections:
             self.types.setdefault(connection.topic, connection.msgtype)
         self.warnings: list[str] = []
+        self._loaded: dict[str, tuple[list, list]] = {}
 
     def fail(self, message: str) -> RecordingError:
         return RecordingError(f"recording {str(self.path)!r}: {message}")
@@ -128,13 +129,19 @@ class _Bag:
                 f"topic {topic} is {self.types[topic]}, expected {' or '.join(expected)} ({holds})"
             )
 
-    def read(self, topic: str, stamped: bool = True) -> _Stamped:
-        """The topic's messages sorted by header stamp (a warning if they were not)."""
-        connections = [c for c in self.reader.connections if c.topic == topic]
-        times, messages = [], []
+    def load(self, topics: list[str]) -> None:
+        """Reads the messages of ``topics`` (those present) in one pass over the bag."""
+        connections = [c for c in self.reader.connections if c.topic in topics]
         for connection, time, raw in self.reader.messages(connections=connections):
+            times, messages = self._loaded.setdefault(connection.topic, ([], []))
             times.append(time)
             messages.append(self.reader.deserialize(raw, connection.msgtype))
+
+    def read(self, topic: str, stamped: bool = True) -> _Stamped:
+        """The topic's messages sorted by header stamp (a warning if they were not)."""
+        if topic not in self._loaded:
+            self.load([topic])
+        times, messages = self._loaded.get(topic, ([], []))
         times = np.asarray(times, dtype=np.int64)
         if not stamped:
             return _Stamped(times, times, messages)
@@ -193,6 +200,11 @@ def _check_topics(bag: _Bag, topics: Topics, commands: bool) -> None:
 
 def _read(bag: _Bag, t: float, f: int, topics: Topics, commands: bool) -> Recording:
     _check_topics(bag, topics, commands)
+    bag.load(
+        [*topics.sonars, *(Topics.precise(topic) for topic in topics.sonars), topics.navigation,
+         topics.attitude, topics.acceleration if commands else None, topics.tf_static,
+         topics.truth_vehicle, topics.truth_target]
+    )  # fmt: skip
     offset, baseline = _mounting(bag, topics.tf_static)
     navigation = bag.read(topics.navigation)
     attitude = bag.read(topics.attitude) if topics.attitude is not None else None
