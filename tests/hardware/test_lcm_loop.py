@@ -3,6 +3,7 @@ two processes in a network namespace of the test's own (multicast on its loopbac
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import uuid
@@ -105,6 +106,8 @@ def test_a_split_the_lockstep_cannot_answer_is_refused() -> None:
 def namespace():
     """A network namespace of the test's own: only its loopback, up, multicast routed to it.
     Skipped where namespaces cannot be made (no privileges); deleted after."""
+    if shutil.which("ip") is None:
+        pytest.skip("no ip command (iproute2)")
     name = f"drake-uuv-{uuid.uuid4().hex[:8]}"
     made = subprocess.run(["ip", "netns", "add", name], capture_output=True, text=True)
     if made.returncode != 0:
