@@ -40,7 +40,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.record is not None:
         from drake_uuv.recordings import record_run
 
-        record_run(args.record, result.log, scenario)
+        record_run(args.record, result.log, scenario, storage=args.record_storage)
     m = result.metrics
     print(
         f"{scenario.steps} steps in {m['wall_time_s']:.2f} s: position RMSE "
@@ -87,6 +87,12 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         metavar="PATH",
         help="also write the run as a ROS 2 bag (MCAP) in the new folder PATH, for drake-uuv "
         "replay and ROS tools (drake_uuv/recordings/layout.py)",
+    )
+    parser.add_argument(
+        "--record-storage",
+        choices=("mcap", "sqlite3"),
+        default="mcap",
+        help="the bag's storage for --record (default: mcap)",
     )
     parser.add_argument(
         "--lcm",

@@ -24,6 +24,7 @@ from pydrake.systems.framework import (
 )
 from pydrake.systems.primitives import LogVectorOutput
 
+from drake_uuv.diagnostics import RunWarning
 from drake_uuv.diagram import UuvDiagram
 from drake_uuv.estimators import make_estimator
 from drake_uuv.metrics import errors, rms_norm
@@ -162,19 +163,8 @@ def replay(
     log.update(_inputs(recording, scenario))
     metrics = replay_metrics(log, scenario)
     metrics.update(wall_time_s=time.perf_counter() - start, seed=float(scenario.random_seed))
-    warnings = [_Warning("recording", w) for w in recording.warnings]
+    warnings = [RunWarning("recording", w) for w in recording.warnings]
     return SimulationResult(scenario=scenario, log=log, metrics=metrics, warnings=warnings)
-
-
-@dataclasses.dataclass(frozen=True)
-class _Warning:
-    """A recording's warning, written like a run's (:class:`~drake_uuv.diagnostics.RunWarning`)."""
-
-    code: str
-    message: str
-
-    def __str__(self) -> str:
-        return f"WARNING: {self.message}"
 
 
 def make_replay_diagram(scenario: Scenario, recording: Recording) -> UuvDiagram:

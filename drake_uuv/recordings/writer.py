@@ -204,11 +204,18 @@ def navigation_at_initialization(scenario: Scenario) -> dict[str, np.ndarray]:
     return {name: navigation.GetOutputPort(name).Eval(mine).copy() for name in _NAVIGATION}
 
 
-def record_run(path: str | Path, log: Mapping[str, np.ndarray], scenario: Scenario) -> Path:
-    """Writes a run of ``scenario`` (its ``log``) as :func:`write_recording` does, with the
-    navigation its estimator started from: a replay then starts where the run did."""
+def record_run(
+    path: str | Path, log: Mapping[str, np.ndarray], scenario: Scenario, storage: str = "mcap"
+) -> Path:
+    """Writes a run of ``scenario`` (its ``log``) as :func:`write_recording` does (``storage``
+    mcap or sqlite3), with the navigation its estimator started from: a replay then starts
+    where the run did."""
     return write_recording(
-        path, log, scenario, initial_navigation=navigation_at_initialization(scenario)
+        path,
+        log,
+        scenario,
+        storage=storage,
+        initial_navigation=navigation_at_initialization(scenario),
     )
 
 

@@ -193,3 +193,19 @@ def test_a_replay_costs_at_most_one_and_a_half_runs(tmp_path) -> None:
         replay(bag, scenario)
         replays.append(time.perf_counter() - start)
     assert min(replays) <= 1.5 * min(runs), (min(replays), min(runs))
+
+
+@pytest.mark.slow
+def test_record_in_sqlite3_and_replay_with_another_estimator(tmp_path) -> None:
+    run, bag = tmp_path / "run", tmp_path / "bag"
+    short = _sets(["steps=60", "steady_state_start=0"])
+    assert main(["run", "--out", str(run), "--record", str(bag), "--record-storage", "sqlite3",
+                 *short]) == 0  # fmt: skip
+    assert sorted(p.suffix for p in bag.iterdir()) == [".db3", ".yaml"]
+    assert main(["replay", str(bag), "--out", str(tmp_path / "kf"), *short]) == 0
+    kf = np.load(tmp_path / "kf" / "log.npz")["x_TU_hat"]
+    np.testing.assert_allclose(kf, np.load(run / "log.npz")["x_TU_hat"], rtol=0, atol=1e-9)
+    ekf = ["--set", "estimator=Ekf"]
+    assert main(["replay", str(bag), "--out", str(tmp_path / "ekf"), *short, *ekf]) == 0
+    metrics = json.loads((tmp_path / "ekf" / "metrics.json").read_text())
+    assert metrics["steps"] == 60 and metrics["position_rmse"] < 5.0
