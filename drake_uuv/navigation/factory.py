@@ -24,9 +24,7 @@ def navigation_setting(scenario: Scenario) -> NavigationSetting:
 def make_navigation(scenario: Scenario, *, batch_size: int = 1) -> System:
     """The navigation of ``scenario.navigation``'s variant."""
     cls = variant_system(NAVIGATIONS, scenario.navigation, "navigation")
-    return cls(
-        scenario.navigation, setting=navigation_setting(scenario), **_TRANSITIONAL(batch_size)
-    )
+    return cls(scenario.navigation, setting=navigation_setting(scenario), **_TRANSITIONAL(batch_size))
 
 
 def _TRANSITIONAL(batch_size: int) -> dict:  # TRANSITIONAL until the slot's systems batch
