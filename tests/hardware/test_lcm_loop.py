@@ -149,3 +149,26 @@ def test_two_processes_give_the_run_bit_for_bit(tmp_path, namespace) -> None:
         np.testing.assert_array_equal(onboard_log[name], run.log[name], err_msg=name)
     for name in ("p_WU", "v_WU", "R_WB", "p_WT", "ranges", "sonar_status"):
         np.testing.assert_array_equal(vehicle_log[name], run.log[name], err_msg=name)
+
+
+def test_a_message_of_another_size_is_refused_naming_the_channel() -> None:
+    from drake import lcmt_scope
+
+    from drake_uuv.hardware import Channel
+    from drake_uuv.hardware.channels import ScopeToVector, VectorToScope
+
+    channel = Channel("DRAKE_UUV_SONAR", "sonar", (("range_samples", 2), ("sonar_status", 2)))
+    unpack = ScopeToVector(channel)
+    context = unpack.CreateDefaultContext()
+    message = lcmt_scope()
+    message.size, message.value = 3, [1.0, 2.0, 0.0]
+    unpack.get_input_port().FixValue(context, message)
+    with pytest.raises(ValueError, match=r"^DRAKE_UUV_SONAR: a message of 3 values, expected 4: "
+                       r"DRAKE_UUV_SONAR \(range_samples 2, sonar_status 2\)$"):  # fmt: skip
+        unpack.GetOutputPort("range_samples").Eval(context)
+    message.size, message.value = 4, [1.0, 2.0, 0.0, 1.0]
+    unpack.get_input_port().FixValue(context, message)
+    assert unpack.GetOutputPort("sonar_status").Eval(context).tolist() == [0.0, 1.0]
+    for system in (ScopeToVector, VectorToScope):
+        with pytest.raises(ValueError, match="^batch_size: the loop over LCM runs one run, got 2$"):
+            system(channel, batch_size=2)

@@ -42,6 +42,13 @@ def test_a_dive_of_another_program_replays_as_an_independent_kf(dive, dive_bag) 
     assert result.metrics["updates"] == 79 and not result.warnings
 
 
+def test_a_recording_source_replays_one_run(dive_bag) -> None:
+    from drake_uuv.recordings import RecordingSource
+
+    with pytest.raises(ValueError, match="^batch_size: a recording replays as one run, got 3$"):
+        RecordingSource(read_recording(dive_bag, time_step=0.5), batch_size=3)
+
+
 def test_the_clock_starts_at_the_first_stamp_and_u_is_the_sonars_midpoint(dive, dive_bag) -> None:
     recording = read_recording(dive_bag, time_step=0.5)
     assert recording.start_ns == EPOCH_NS and recording.steps == 80
@@ -68,6 +75,9 @@ def test_stamps_out_of_order_are_sorted_with_a_warning(tmp_path, dive, dive_bag,
     assert status == 0
     err = capsys.readouterr().err
     assert err.startswith("drake-uuv: WARNING: /navigation/odometry: 2 header stamps out of order")
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert metrics["steps"] == 80 and "position_rmse" not in metrics  # no truth recorded
+    assert not (tmp_path / "out" / "error_summary.png").exists()
     sorted_log = np.load(tmp_path / "out" / "log.npz")
     expected = replay(dive_bag, load_scenario("paper", PAPER)).log["x_TU_hat"]
     np.testing.assert_array_equal(sorted_log["x_TU_hat"], expected)
