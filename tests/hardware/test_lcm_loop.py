@@ -49,7 +49,7 @@ def test_the_paper_channels_are_documented() -> None:
 
 
 def test_one_process_gives_the_run_bit_for_bit() -> None:
-    scenario = load_scenario("paper")
+    scenario = load_scenario("paper", ["steps=200", "steady_state_start=100"])
     run = ClosedLoopSimulation(scenario).run()
     over_lcm = run_lcm(scenario, "memq://")
     _same(run.log, over_lcm.log)
