@@ -9,16 +9,29 @@ later (a full disk, a folder removed during a run) is one line naming the path, 
 One module per subcommand (:mod:`~drake_uuv.cli.run`, :mod:`~drake_uuv.cli.diagram`,
 :mod:`~drake_uuv.cli.animate`, :mod:`~drake_uuv.cli.montecarlo`,
 :mod:`~drake_uuv.cli.compare`, :mod:`~drake_uuv.cli.variants`,
-:mod:`~drake_uuv.cli.scenarios`), each with its parser (``add_subcommand``) and handler; the
-shared options and :class:`UsageError` are in :mod:`~drake_uuv.cli.options`. The command line
-is the top layer: nothing else in the package imports it.
+:mod:`~drake_uuv.cli.scenarios`, :mod:`~drake_uuv.cli.replay`,
+:mod:`~drake_uuv.cli.onboard`, :mod:`~drake_uuv.cli.vehicle`), each with its parser
+(``add_subcommand``) and handler; the shared options and :class:`UsageError` are in
+:mod:`~drake_uuv.cli.options`. The command line is the top layer: nothing else in the package
+imports it.
 """
 
 import argparse
 import sys
 from collections.abc import Callable, Sequence
 
-from drake_uuv.cli import animate, compare, diagram, montecarlo, run, scenarios, variants
+from drake_uuv.cli import (
+    animate,
+    compare,
+    diagram,
+    montecarlo,
+    onboard,
+    replay,
+    run,
+    scenarios,
+    variants,
+    vehicle,
+)
 from drake_uuv.cli.options import (
     ArgumentParser,
     UsageError,
@@ -48,6 +61,9 @@ EXIT_BAD_INPUT = 2
 # Each entry adds one subcommand (parser and handler) to the command line.
 SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     run.add_subcommand,
+    replay.add_subcommand,
+    onboard.add_subcommand,
+    vehicle.add_subcommand,
     diagram.add_subcommand,
     animate.add_subcommand,
     montecarlo.add_subcommand,

@@ -3,8 +3,13 @@
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from drake_uuv.cli.options import UsageError, add_command, scenario_from_args
+
+if TYPE_CHECKING:
+    from drake_uuv.scenario import Scenario
+    from drake_uuv.simulation import SimulationResult
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -15,15 +20,27 @@ def _run(args: argparse.Namespace) -> int:
     if args.realtime_rate < 0:
         raise UsageError(f"--realtime-rate: must be ≥ 0, got {args.realtime_rate}")
     out = Path(args.out)
+    if args.lcm is not None and args.meshcat:
+        raise UsageError("--lcm: draws no live scene, drop --meshcat")
+    if args.record is not None and Path(args.record).exists():
+        raise UsageError(f"--record: {args.record!r} exists (a recording is a new folder)")
     meshcat = None
     if args.meshcat:
         from pydrake.geometry import StartMeshcat
 
         meshcat = StartMeshcat()
         print(f"Meshcat is serving the live scene at {meshcat.web_url()}")
-    result = ClosedLoopSimulation(scenario, meshcat=meshcat).run(realtime_rate=args.realtime_rate)
+    if args.lcm is not None:
+        result = _run_over_lcm(scenario, args)
+    else:
+        simulation = ClosedLoopSimulation(scenario, meshcat=meshcat)
+        result = simulation.run(realtime_rate=args.realtime_rate)
     result.save(out)
     write_run_figures(result.log, scenario, out)
+    if args.record is not None:
+        from drake_uuv.recordings import record_run
+
+        record_run(args.record, result.log, scenario, storage=args.record_storage)
     m = result.metrics
     print(
         f"{scenario.steps} steps in {m['wall_time_s']:.2f} s: position RMSE "
@@ -36,6 +53,16 @@ def _run(args: argparse.Namespace) -> int:
     if meshcat is not None and sys.stdin.isatty():
         input("The scene stays up until you press Enter. ")
     return 0
+
+
+def _run_over_lcm(scenario: "Scenario", args: argparse.Namespace) -> "SimulationResult":
+    """The run as its two halves over LCM in this process (drake_uuv/hardware/)."""
+    from drake_uuv.hardware import SplitError, run_lcm
+
+    try:
+        return run_lcm(scenario, args.lcm)
+    except SplitError as e:
+        raise UsageError(f"--lcm: {e}") from e
 
 
 def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
@@ -53,4 +80,24 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         default=0.0,
         help="pace the simulation at this multiple of real time (0: as fast as possible; "
         "with --meshcat, try 10)",
+    )
+    parser.add_argument(
+        "--record",
+        default=None,
+        metavar="PATH",
+        help="also write the run as a ROS 2 bag (MCAP) in the new folder PATH, for drake-uuv "
+        "replay and ROS tools (drake_uuv/recordings/layout.py)",
+    )
+    parser.add_argument(
+        "--record-storage",
+        choices=("mcap", "sqlite3"),
+        default="mcap",
+        help="the bag's storage for --record (default: mcap)",
+    )
+    parser.add_argument(
+        "--lcm",
+        default=None,
+        metavar="URL",
+        help="run the loop as its onboard and vehicle halves over LCM in this process, in "
+        "lockstep (e.g. memq://): the same run (drake_uuv/hardware/)",
     )

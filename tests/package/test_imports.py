@@ -44,7 +44,8 @@ LAYERS: list[set[str]] = [
         "diagnostics",
         ROOT,
     },  # runs of it (the facade exports ClosedLoopSimulation)
-    {"analysis", "studies", "visualization"},  # many runs, pictures
+    # Many runs, pictures; field data (ROS bags replayed, the loop's halves over LCM).
+    {"analysis", "studies", "visualization", "recordings", "hardware"},
     {"cli"},  # the command line, on top of everything
 ]
 
@@ -64,6 +65,7 @@ SUBLAYERS: dict[str, list[set[str]]] = {
     "cli": [
         {"options"},
         {"run", "diagram", "animate", "montecarlo", "compare", "variants", "scenarios"},
+        {"replay", "onboard", "vehicle"},
         {ROOT},
         {"__main__"},
     ],
