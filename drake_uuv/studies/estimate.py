@@ -3,20 +3,21 @@
 A run's cost is set by its configuration (:func:`configuration`): the plant, estimator and
 attitude variants, the particle count and the number of steps (a particle filter or the
 hovering UUV costs ten to a hundred times the paper's kinematic loop with its KF; the rest of
-a variant's settings costs little). :func:`estimate_wall_time` times one run of each distinct
-configuration among the runs still to compute, exactly as a study runs it
-(:func:`~drake_uuv.studies.runner.run_seeds` on the first seed, its diagram built), and scales:
+a variant's settings costs little). :func:`estimate_wall_time` times a short batch of each
+distinct configuration among the runs still to compute, as a study runs it
+(:func:`~drake_uuv.studies.runner.run_seeds`, its diagram built), and scales:
 the wall time is Σ over configurations of (one run's seconds × its runs), divided by the
 workers (at most one per run). It ignores what parallel workers lose to each other (about 13 %
 on two cores, ``benchmarks/bench_montecarlo.py``) and the spread of run times across seeds.
 """
 
+import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from time import perf_counter
 
 from drake_uuv.scenario import Scenario, scenario_as_dict
-from drake_uuv.studies.runner import run_seeds
+from drake_uuv.studies.runner import max_batch_size, run_seeds
 from drake_uuv.studies.storage import missing_seeds
 from drake_uuv.studies.study import Study
 
@@ -37,11 +38,23 @@ def configuration(scenario: Scenario) -> Configuration:
     )
 
 
+#: Runs and steps of the timed sample: a study's runs go in batches, whose cost per run falls
+#: with the batch, so one run alone would overestimate a study tens of times over.
+SAMPLE_RUNS, SAMPLE_STEPS = 32, 40
+
+
 def time_one_run(scenario: Scenario) -> float:
-    """Wall seconds of one run of ``scenario`` as a study runs it (first seed, diagram built)."""
+    """Wall seconds a run of ``scenario`` takes in a study: a batch of up to
+    :data:`SAMPLE_RUNS` runs of at most :data:`SAMPLE_STEPS` steps timed as a study runs it
+    (diagram built, seeds from the first), per run and scaled to the scenario's steps."""
+    steps = min(scenario.steps, SAMPLE_STEPS)
+    sample = dataclasses.replace(
+        scenario, steps=steps, steady_state_start=min(scenario.steady_state_start, steps - 1)
+    )
+    runs = max(1, min(SAMPLE_RUNS, max_batch_size(sample)))
     start = perf_counter()
-    run_seeds(scenario, [scenario.random_seed])
-    return perf_counter() - start
+    run_seeds(sample, list(range(scenario.random_seed, scenario.random_seed + runs)))
+    return (perf_counter() - start) / runs * scenario.steps / steps
 
 
 @dataclass(frozen=True)
@@ -126,7 +139,7 @@ def format_estimate(estimate: WallTimeEstimate) -> str:
     )
     lines = [
         f"{head}: about {duration(estimate.seconds)} {where},",
-        "from one timed run of each configuration (plant, estimator, particles, attitude, steps):",
+        "from a timed batch of each configuration (plant, estimator, particles, attitude, steps):",
     ]
     for (plant, estimator, particles, attitude, steps), (seconds, runs) in sorted(
         estimate.costs.items(), key=lambda item: -item[1][0] * item[1][1]

@@ -93,7 +93,7 @@ def test_the_text_states_runs_time_and_what_was_measured():
     )
     assert format_estimate(estimate) == (
         "36 runs to compute (4 variants × 10 runs, 4 on disk already): about 25 s on 2 workers,\n"
-        "from one timed run of each configuration (plant, estimator, particles, attitude, steps):\n"
+        "from a timed batch of each configuration (plant, estimator, particles, attitude, steps):\n"
         "     4.00 s ×    10  KinematicUuv, ParticleFilter 20000, TrajectoryAttitude, 80 steps\n"
         "     0.50 s ×    16  KinematicUuv, PaperKf, TrajectoryAttitude, 80 steps\n"
         "     0.25 s ×    10  KinematicUuv, PaperKf, FixedAttitude, 80 steps"
@@ -122,11 +122,14 @@ def test_durations(seconds, text):
     assert duration(seconds) == text
 
 
-def test_one_run_is_timed_as_a_study_runs_its_first_seed(monkeypatch):
-    clock = iter([10.0, 12.5])
-    seeds = []
+def test_a_run_is_timed_in_a_short_batch_as_a_study_runs_it(monkeypatch):
+    """32 runs of 40 steps from the first seed, timed together: per run, scaled to the steps."""
+    clock = iter([10.0, 12.0])
+    calls = []
     monkeypatch.setattr(estimate_module, "perf_counter", lambda: next(clock))
-    monkeypatch.setattr(estimate_module, "run_seeds", lambda scenario, s: seeds.append(s))
-    scenario = load_scenario("paper", list(SHORT), seed=42)
-    assert time_one_run(scenario) == 2.5
-    assert seeds == [[42]]
+    monkeypatch.setattr(
+        estimate_module, "run_seeds", lambda scenario, s: calls.append((scenario.steps, s))
+    )
+    scenario = load_scenario("paper", ["steps=80", "steady_state_start=40"], seed=42)
+    assert time_one_run(scenario) == pytest.approx(2.0 / 32 * 80 / 40)
+    assert calls == [(40, list(range(42, 74)))]
