@@ -1,5 +1,5 @@
-"""Regenerates docs/results.md: the paper's figures, Monte Carlo statistics, the comparison
-tables, and a plain statement of which of the paper's claims reproduce.
+"""Regenerates the results pages, docs/results/: the paper's figures, Monte Carlo statistics,
+the comparison tables, and a plain statement of which of the paper's claims reproduce.
 
     python scripts/make_results_page.py                  # 100 runs per study (see below)
     python scripts/make_results_page.py --runs 20        # quicker, wider intervals
@@ -8,9 +8,11 @@ tables, and a plain statement of which of the paper's claims reproduce.
 Studies are kept in ``--work`` (default ``out/results``); figures go to ``docs/figures/``.
 On a shared 2-core machine the whole page took about 30 min with the navigation section's runs
 already in ``--work`` (the comparison groups' 4100 runs about 10 min of it).
-Every sentence that states a number takes it from these runs. The groups it runs and its
-later sections (``SECTIONS``) come from the repository's ``studies/`` folder, loaded as
-``drake-uuv compare`` loads it (:func:`drake_uuv.studies.load_studies`).
+Every sentence that states a number takes it from these runs. The results are composed as one
+Markdown text, a ``## `` section per study; ``scripts/results_pages.py`` cuts it into
+``docs/results/index.md`` and one page per section (the site's results pages). The groups it
+runs and its later sections (``SECTIONS``) come from the repository's ``studies/`` folder,
+loaded as ``drake-uuv compare`` loads it (:func:`drake_uuv.studies.load_studies`).
 """
 
 import argparse
@@ -20,6 +22,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from results_pages import write_results_pages  # scripts/, beside this file
 
 from drake_uuv.analysis.figures import (
     error_figure,
@@ -29,7 +32,7 @@ from drake_uuv.analysis.figures import (
     save_figure,
     trajectory_figure,
 )
-from drake_uuv.io import write_atomic, write_text_atomic
+from drake_uuv.io import write_atomic
 from drake_uuv.metrics import errors
 from drake_uuv.scenario import ALPHA_PROVEN_INTERVAL, load_scenario
 from drake_uuv.simulation import ClosedLoopSimulation
@@ -228,7 +231,8 @@ and with α (mean relative speed {_g(alphas[min(alphas)]["relative_speed_mean"])
 α = {min(alphas):g}, {_g(a12["relative_speed_mean"])} m/s at α = 1.2). The samples of the UUV
 position follow the target, but between samples the vehicle would have to move at these speeds:
 the law is not physically meaningful as it stands. A law that also regulates the relative
-velocity (LQR on the double integrator, below) removes this.
+velocity (LQR on the double integrator,
+[tracking control a vehicle can follow](results/tracking.md)) removes this.
 
 ### 5. The α interval — sufficient, not necessary
 
@@ -284,8 +288,8 @@ computed on its own runs: the Monte Carlo bound averages the measurement informa
 runs and recurses once (the proven bound); the mean of the per-run bounds, each along its own
 trajectory, is what an estimator efficient on every run attains. `estimator: !Ekf`, `!Iekf`,
 `!Ukf` and `!ParticleFilter` filter the raw ranges, each started by the paper's linear KF and
-handing over by a rule that scales with noise and range (see *Estimation at the limit*
-below).
+handing over by a rule that scales with noise and range (see
+[Estimation at the limit](results/regimes.md)).
 
 On the paper scenario (Algorithm 2), steady-state RMSE over the bound, 95 % intervals:
 
@@ -339,9 +343,10 @@ vehicle can make. Ratios lqr / paper on the paper scenario (Algorithm 2, same se
 {table}
 
 Both laws under Algorithms 1 and 2, with and without the 7 m/s² limit, are in the *tracking
-law × attitude mode* table below; `python scripts/compare_tracking.py` writes the longer study
-in [tracking_comparison.md](tracking_comparison.md) (eigenvalues, share of steps at the limit,
-the lag without feed-forward).
+law × attitude mode* table of the
+[comparison tables](results/comparison-tables.md); `python scripts/compare_tracking.py` writes the
+longer study in [tracking_comparison.md](tracking_comparison.md) (eigenvalues, share of steps at
+the limit, the lag without feed-forward).
 """
 
 
@@ -372,8 +377,8 @@ def main() -> None:
 
     page = f"""# Results: what reproduces of the paper
 
-Regenerate with `python scripts/make_results_page.py --runs {args.runs}` (this page, its figures
-in `docs/figures/`, the studies in `out/results/`). The single-run figures come from
+Regenerate with `python scripts/make_results_page.py --runs {args.runs}` (these pages, their
+figures in `docs/figures/`, the studies in `out/results/`). The single-run figures come from
 `drake-uuv run` (paper scenario, seed 0), the statistics from
 `drake-uuv montecarlo --runs {args.runs}` and
 `drake-uuv compare --runs {args.runs} {" ".join(f"--group {g}" for g in GROUPS)}`.
@@ -418,8 +423,8 @@ percentile bootstrap over runs; fractions with Wilson intervals
 
 {table}
 """
-    write_text_atomic(args.docs / "results.md", page)
-    print(f"wrote {args.docs / 'results.md'}")
+    for path in write_results_pages(page, args.docs / "results"):
+        print(f"wrote {path}")
     print(json.dumps({k: v for k, v in summary.items() if not isinstance(v, str)}, indent=1))
     if not math.isfinite(summary["position_rmse"] or math.nan):
         raise SystemExit("the paper scenario's position RMSE is not finite")

@@ -1,4 +1,4 @@
-"""Sections of docs/results.md beyond the paper's own claims, one module each.
+"""Sections of the results pages (docs/results/) beyond the paper's own claims, one module each.
 
 Each module defines ``section(work, docs, runs, execution) -> str``: it runs (or, with
 ``execution["resume"]``, reuses) its studies under ``work``, writes its figures into
