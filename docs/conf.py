@@ -52,6 +52,8 @@ nb_merge_streams = True
 
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
+# Types for the parameters a docstring documents (a dataclass's fields are in its table).
+autodoc_typehints_description_target = "documented"
 autodoc_typehints_format = "short"
 autodoc_default_options = {"show-inheritance": True}
 autoclass_content = "class"

@@ -308,11 +308,11 @@ def _entry(*children: nodes.Node) -> nodes.entry:
 def fields_table(cls: type) -> nodes.Node:
     """The fields of ``cls`` as a table: field, type, default, unit, meaning."""
     headers = ("field", "type", "default", "unit", "meaning")
-    table = nodes.table(classes=["uuv-fields"])
+    table = nodes.table(classes=["uuv-fields", "colwidths-given"])
     table["uuv_dataclass"] = f"{cls.__module__}.{cls.__qualname__}"
     group = nodes.tgroup(cols=len(headers))
     table += group
-    for width in (17, 14, 21, 8, 40):
+    for width in (20, 13, 21, 7, 39):
         group += nodes.colspec(colwidth=width)
     head = nodes.thead()
     row = nodes.row()
@@ -497,7 +497,7 @@ class SignalsDirective(SphinxDirective):
 
         self.env.note_dependency(module.__file__)
         headers = ("signal", "system", "shape", "logged", "meaning")
-        table = nodes.table(classes=["uuv-signals"])
+        table = nodes.table(classes=["uuv-signals", "colwidths-given"])
         group = nodes.tgroup(cols=len(headers))
         table += group
         for width in (14, 18, 8, 8, 52):
