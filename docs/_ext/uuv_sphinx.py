@@ -30,10 +30,12 @@ import os
 import pkgutil
 import re
 import shutil
+import sys
 import textwrap
 import tokenize
 import types
 import typing
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -626,10 +628,20 @@ def write_api_pages(app: Sphinx) -> None:
 # Notebook cache
 
 
+#: Installed distributions whose version a notebook's outputs depend on.
+DISTRIBUTIONS = ("drake", "numpy", "scipy", "matplotlib", "numba", "ipykernel")
+
+
 def code_digest() -> str:
     """A digest of what a notebook's outputs depend on: the package, its scenarios, the
-    notebooks and the project's dependencies."""
-    digest = hashlib.sha256()
+    notebooks, the project's declared dependencies, the Python and the installed versions of
+    :data:`DISTRIBUTIONS`."""
+    digest = hashlib.sha256(sys.version.encode())
+    for name in DISTRIBUTIONS:
+        try:
+            digest.update(f"{name}=={metadata.version(name)}".encode())
+        except metadata.PackageNotFoundError:
+            digest.update(f"{name} absent".encode())
     files = sorted(
         [
             *ROOT.glob("drake_uuv/**/*.py"),
