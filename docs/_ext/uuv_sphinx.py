@@ -5,9 +5,10 @@
   inputs on the left, the system in a box, outputs on the right. A port may carry a
   parenthesised condition (``v_WU (with timing)``), shown under its name with a dashed arrow.
   A port that is a signal of :data:`drake_uuv.signals.SIGNALS` links to the signal table.
-- ``.. uuv-fields:: dotted.Name``: a dataclass's fields, their types, defaults and units (from
-  the ``[unit]`` in the comment above each field, or ````field`` [unit]`` in the class's
-  docstring), and that comment. autodoc adds it to every dataclass it documents.
+- ``.. uuv-fields:: dotted.Name``: a dataclass's fields, their types, defaults and units (the
+  ``[unit]`` in the comment above each field, or where the class's docstring or comments write
+  the field's name followed by ``[unit]``), and that comment. autodoc adds it to every
+  dataclass it documents.
 - ``.. uuv-slots::``, ``.. uuv-signals::``, ``.. uuv-scenarios::``: the slots with each
   variant's system and configuration (from :data:`drake_uuv.diagram.SLOT_REGISTRY`), the
   table of signals, the shipped scenario files.
@@ -172,11 +173,19 @@ def looks_like_unit(text: str) -> bool:
     return bool(atoms) and all(_UNIT_ATOM.match(a) for a in atoms)
 
 
-def unit_of(comment: str) -> str:
-    """The first ``[unit]`` of a field's comment, or ''."""
+def unit_of(comment: str, others: frozenset[str] = frozenset()) -> str:
+    """The ``[unit]``s of a field's comment (``N s/m; N m s`` where it gives a force's and a
+    moment's), or '': one written right after the name of another field (``others``) is that
+    field's."""
+    units: list[str] = []
     for found in re.finditer(r"\[([^\[\]]+)\]", comment):
-        if looks_like_unit(found.group(1)):
-            return found.group(1)
+        before = re.search(r"(\w+)(?:``)?\s*$", comment[: found.start()])
+        if before and before.group(1) in others:
+            continue
+        if looks_like_unit(found.group(1)) and found.group(1) not in units:
+            units.append(found.group(1))
+    if units:
+        return "; ".join(units)
     if re.search(r"\bseconds\b", comment, re.IGNORECASE):
         return "s"
     return ""
@@ -216,13 +225,17 @@ def _class_comments(cls: type) -> dict[str, str]:
     return found
 
 
-def _docstring_units(cls: type) -> dict[str, str]:
-    """``{field: unit}`` from ````field`` [unit]`` in the docstrings of ``cls`` and its bases."""
+def _stated_units(cls: type, names: list[str], comments: list[str]) -> dict[str, str]:
+    """``{field: unit}`` where the class's docstrings (its own and its bases') or its fields'
+    comments write the field's name followed by a unit: ````handover_angle`` [rad]``,
+    ``mean outlier_scale [m]``."""
+    text = "\n".join([*(klass.__doc__ or "" for klass in cls.__mro__), *comments])
     units: dict[str, str] = {}
-    for klass in reversed(cls.__mro__):
-        for name, unit in re.findall(r"``(\w+)``\s*\[([^\[\]]+)\]", klass.__doc__ or ""):
-            if looks_like_unit(unit):
-                units[name] = unit
+    for name in names:
+        for found in re.finditer(rf"\b{re.escape(name)}(?:``)?\s*\[([^\[\]]+)\]", text):
+            if looks_like_unit(found.group(1)):
+                units[name] = found.group(1)
+                break
     return units
 
 
@@ -283,7 +296,8 @@ def field_rows(cls: type) -> list[FieldRow]:
         if dataclasses.is_dataclass(klass) and "__annotations__" in vars(klass):
             for name, comment in _class_comments(klass).items():
                 comments[name] = (comment, klass.__name__)
-    doc_units = _docstring_units(cls)
+    names = [field.name for field in dataclasses.fields(cls)]
+    stated = _stated_units(cls, names, [comment for comment, _ in comments.values()])
     rows = []
     for field in dataclasses.fields(cls):
         if field.default is not dataclasses.MISSING:
@@ -293,7 +307,8 @@ def field_rows(cls: type) -> list[FieldRow]:
         else:
             default = ""
         comment, owner = comments.get(field.name, ("", cls.__name__))
-        unit = unit_of(comment) or doc_units.get(field.name, "")
+        others = frozenset(names) - {field.name}
+        unit = unit_of(comment, others) or stated.get(field.name, "")
         hint = hints.get(field.name, field.type)
         rows.append(FieldRow(field.name, format_type(hint), default, unit, comment, owner))
     return rows

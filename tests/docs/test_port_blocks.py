@@ -108,9 +108,12 @@ def test_units_are_read_from_the_comments() -> None:
     units = {row.name: row.unit for row in uuv_sphinx.field_rows(SonarConfig)}
     assert units["baseline"] == "m" and units["noise_variances"] == "m²"
     assert units["beam_half_angle_deg"] == "deg" and units["latency"] == "s"
+    # "... an excess of mean outlier_scale [m]" in outlier_probability's comment: outlier_scale's.
+    assert units["outlier_probability"] == "" and units["outlier_scale"] == "m"
     hull = {row.name: row for row in uuv_sphinx.field_rows(HoveringAuv)}
     assert hull["inertia"].unit == "kg m²" and hull["controller_rate"].unit == "Hz"
     assert hull["inertia"].comment.startswith("Inertia about the centre of gravity")
+    assert hull["linear_damping"].unit == "N s/m; N m s"  # its force's and its moment's
     # From the class's docstring (``handover_angle`` [rad]), and inherited with their comments.
     ranges = {row.name: row for row in uuv_sphinx.field_rows(RawRangeOptions)}
     assert ranges["handover_angle"].unit == "rad"
