@@ -9,9 +9,10 @@
   ``[unit]`` in the comment above each field, or where the class's docstring or comments write
   the field's name followed by ``[unit]``), and that comment. autodoc adds it to every
   dataclass it documents.
-- ``.. uuv-slots::``, ``.. uuv-signals::``, ``.. uuv-scenarios::``: the slots with each
-  variant's system and configuration (from :data:`drake_uuv.diagram.SLOT_REGISTRY`), the
-  table of signals, the shipped scenario files.
+- ``.. uuv-slots::``, ``.. uuv-slot-table::``, ``.. uuv-signals::``, ``.. uuv-scenarios::``:
+  the slots with each variant's system and configuration (from
+  :data:`drake_uuv.diagram.SLOT_REGISTRY`), the same as one table of ports, the table of
+  signals, the shipped scenario files.
 - The API pages (``reference/api/*.rst``, not committed) are written at ``builder-inited``:
   one page per subpackage, one ``automodule`` per module found by walking the package.
 - The tutorial notebooks run at build time through MyST-NB's cache; the cache is kept only
@@ -506,6 +507,75 @@ def _port_text(port: tuple[str, str | None]) -> str:
     return f"{name} ({condition})" if condition else name
 
 
+def _xref(target: str, text: str) -> nodes.Node:
+    return addnodes.pending_xref(
+        "", nodes.literal(text, text), refdomain="py", reftype="class", reftarget=target,
+        refexplicit=True, refwarn=False,
+    )  # fmt: skip
+
+
+def _port_list(ports: list[tuple[str, str | None]]) -> list[nodes.Node]:
+    items: list[nodes.Node] = []
+    for i, (name, condition) in enumerate(ports):
+        if i:
+            items.append(nodes.Text(", "))
+        items.append(nodes.literal(name, name))
+        if condition:
+            items.append(nodes.Text(f" ({condition})"))
+    return items
+
+
+class SlotTableDirective(SphinxDirective):
+    """One table of the loop's systems: each slot's (and the target's and the sonar's)
+    systems, the variants that choose each, and its ports from its ``pydrake_system`` block."""
+
+    def run(self) -> list[nodes.Node]:
+        from drake_uuv.diagram import SLOT_REGISTRY
+        from drake_uuv.plants import TargetRandomWalk
+        from drake_uuv.sensors import DualSonar
+
+        rows: list[tuple[str, list[str], Any]] = []
+        for slot in SLOT_REGISTRY:
+            systems: dict[Any, list[str]] = {}
+            for variant, system in slot.table.items():
+                systems.setdefault(system, []).append(f"!{variant.__name__}")
+            rows += [(f"{slot.section} ({slot.system})", tags, system)
+                     for system, tags in systems.items()]  # fmt: skip
+        rows += [("target (target)", [], TargetRandomWalk), ("sonar (sonar)", [], DualSonar)]
+        headers = ("slot (system name)", "variants", "system", "inputs", "outputs")
+        table = nodes.table(classes=["uuv-slot-table", "colwidths-given"])
+        group = nodes.tgroup(cols=len(headers))
+        table += group
+        for width in (13, 17, 20, 24, 26):
+            group += nodes.colspec(colwidth=width)
+        head = nodes.thead()
+        row = nodes.row()
+        for header in headers:
+            row += _entry(nodes.Text(header))
+        head += row
+        group += head
+        body = nodes.tbody()
+        for slot, tags, system in rows:
+            _note_source(self.env, system)
+            block = next(
+                (b for b in system_blocks(system.__doc__ or "") if b["name"] == system.__name__),
+                {"input_ports": [], "output_ports": []},
+            )
+            row = nodes.row()
+            row += _entry(nodes.Text(slot))
+            variants: list[nodes.Node] = []
+            for i, tag in enumerate(tags):
+                variants += [nodes.Text(", ")] if i else []
+                variants.append(nodes.literal(tag, tag))
+            row += _entry(*(variants or [nodes.Text("(one system)")]))
+            row += _entry(_xref(_qualified(system), system.__name__))
+            row += _entry(*_port_list(block["input_ports"]))
+            row += _entry(*_port_list(block["output_ports"]))
+            body += row
+        group += body
+        return [table]
+
+
 class SignalsDirective(SphinxDirective):
     """The table of signals (:data:`drake_uuv.signals.SIGNALS`), each row a link target."""
 
@@ -720,6 +790,7 @@ def setup(app: Sphinx) -> dict[str, Any]:
     app.add_directive("pydrake_system", PydrakeSystemDirective)
     app.add_directive("uuv-fields", FieldsDirective)
     app.add_directive("uuv-slots", SlotsDirective)
+    app.add_directive("uuv-slot-table", SlotTableDirective)
     app.add_directive("uuv-signals", SignalsDirective)
     app.add_directive("uuv-scenarios", ScenariosDirective)
     app.setup_extension("sphinx.ext.autodoc")

@@ -181,6 +181,18 @@ def test_the_slots_page_shows_every_variant_with_its_ports_and_fields(site: Site
         assert {f.name for f in dataclasses.fields(config)} <= _literals(section), heading
 
 
+def test_the_guide_tables_every_variant_with_its_system(site: Site) -> None:
+    from drake_uuv.diagram import SLOT_REGISTRY
+
+    page = _page(site, "guide/diagram.html")
+    table = page[page.index('class="uuv-slot-table') :]
+    table = table[: table.index("</table>")]
+    names = _literals(table)
+    for slot in SLOT_REGISTRY:
+        for variant, system in slot.table.items():
+            assert {f"!{variant.__name__}", system.__name__} <= names, variant.__name__
+
+
 def test_the_signals_page_lists_every_signal(site: Site) -> None:
     from drake_uuv.signals import SIGNALS
 
