@@ -102,10 +102,25 @@ def system_blocks(docstring: str) -> list[dict[str, Any]]:
     return [parse_system_block(found["body"]) for found in _BLOCK_IN_DOCSTRING.finditer(text)]
 
 
-def _signal_names() -> set[str]:
+def all_signals() -> list[tuple[Any, str]]:
+    """``[(signal, who outputs it)]``: the table of signals (:data:`drake_uuv.signals.SIGNALS`),
+    then the ``extra_signals`` of the slots' systems (a variant's own logged outputs)."""
+    from drake_uuv.diagram import SLOT_REGISTRY
     from drake_uuv.signals import SIGNALS
 
-    return {signal.name for signal in SIGNALS}
+    found = [(signal, signal.system) for signal in SIGNALS]
+    names = {signal.name for signal in SIGNALS}
+    for slot in SLOT_REGISTRY:
+        for system in dict.fromkeys(slot.table.values()):
+            for signal in getattr(system, "extra_signals", ()):
+                if signal.name not in names:
+                    names.add(signal.name)
+                    found.append((signal, f"{signal.system} ({system.__name__} only)"))
+    return found
+
+
+def _signal_names() -> set[str]:
+    return {signal.name for signal, _ in all_signals()}
 
 
 def signal_label(name: str) -> str:
@@ -577,12 +592,17 @@ class SlotTableDirective(SphinxDirective):
 
 
 class SignalsDirective(SphinxDirective):
-    """The table of signals (:data:`drake_uuv.signals.SIGNALS`), each row a link target."""
+    """The table of signals (:func:`all_signals`), each row a link target."""
 
     def run(self) -> list[nodes.Node]:
         import drake_uuv.signals as module
 
         self.env.note_dependency(module.__file__)
+        from drake_uuv.diagram import SLOT_REGISTRY
+
+        for slot in SLOT_REGISTRY:
+            for system in slot.table.values():
+                _note_source(self.env, system)
         headers = ("signal", "system", "shape", "logged", "meaning")
         table = nodes.table(classes=["uuv-signals", "colwidths-given"])
         group = nodes.tgroup(cols=len(headers))
@@ -596,13 +616,13 @@ class SignalsDirective(SphinxDirective):
         head += row
         group += head
         body = nodes.tbody()
-        for signal in module.SIGNALS:
+        for signal, system in all_signals():
             label = signal_label(signal.name)
             target = nodes.target("", "", ids=[label], names=[label])
             self.state.document.note_explicit_target(target)
             row = nodes.row()
             row += _entry(target, nodes.literal(signal.name, signal.name))
-            row += _entry(nodes.literal(signal.system, signal.system))
+            row += _entry(nodes.literal(system, system))
             shape = "×".join(str(n) for n in signal.shape) or "scalar"
             row += _entry(nodes.Text(shape.replace("-1", "f·2")))
             row += _entry(nodes.Text("yes" if signal.logged else "no"))

@@ -194,10 +194,13 @@ def test_the_guide_tables_every_variant_with_its_system(site: Site) -> None:
 
 
 def test_the_signals_page_lists_every_signal(site: Site) -> None:
+    from drake_uuv.estimators.range_filter import RangeFilter
+    from drake_uuv.plants.hovering_auv import HoveringAuvPlant
     from drake_uuv.signals import SIGNALS
 
     page = _page(site, "reference/signals.html")
-    for signal in SIGNALS:
+    extra = [*HoveringAuvPlant.extra_signals, *RangeFilter.extra_signals]
+    for signal in [*SIGNALS, *extra]:
         assert f'id="{uuv_sphinx.signal_label(signal.name)}"' in page, signal.name
 
 
