@@ -14,7 +14,8 @@
   :data:`drake_uuv.diagram.SLOT_REGISTRY`), the same as one table of ports, the table of
   signals, the shipped scenario files.
 - The API pages (``reference/api/*.rst``, not committed) are written at ``builder-inited``:
-  one page per subpackage, one ``automodule`` per module found by walking the package.
+  one page per subpackage, one ``automodule`` per module found by walking the package; and
+  the notebooks of ``tutorials/`` are copied into ``docs/tutorials/`` (not committed).
 - The tutorial notebooks run at build time through MyST-NB's cache; the cache is kept only
   while the package, the scenarios and the notebooks are unchanged (a digest of them), so a
   cached output is always the output of this code.
@@ -60,7 +61,9 @@ _PORT = re.compile(r"^\s*(?P<name>[^\s(]+)\s*(?:\((?P<condition>.*)\))?\s*$")
 
 
 def parse_ports(entries: Any) -> list[tuple[str, str | None]]:
-    """``[(name, condition or None)]`` of a YAML port list (block or flow style)."""
+    """``[(name, condition or None)]`` of a YAML port list (block or flow style). An entry
+    that is not ``name`` or ``name (condition)`` (``<each signal of the channel>``) is a
+    description of ports, drawn as written."""
     if entries is None:
         return []
     if isinstance(entries, str):
@@ -68,9 +71,10 @@ def parse_ports(entries: Any) -> list[tuple[str, str | None]]:
     ports = []
     for entry in entries:
         found = _PORT.match(str(entry))
-        if not found:
-            raise ValueError(f"cannot read the port {entry!r}")
-        ports.append((found["name"], found["condition"]))
+        if found:
+            ports.append((found["name"], found["condition"]))
+        else:
+            ports.append((str(entry).strip(), None))
     return ports
 
 
@@ -664,7 +668,9 @@ class ScenariosDirective(SphinxDirective):
 # The API pages
 
 
-#: Reference pages: title, the modules' prefix, and whether submodules are included.
+#: Reference pages in this order, each ``(file stem, title, the subpackage it documents)``;
+#: the top-level modules go to ``core``, and a subpackage not listed here gets a page of its
+#: own after these, titled by its docstring's first line.
 API_GROUPS: tuple[tuple[str, str, str], ...] = (
     ("core", "The diagram, a run and its signals", "drake_uuv"),
     ("scenario", "Scenario: the configuration dataclasses", "drake_uuv.scenario"),
@@ -678,6 +684,8 @@ API_GROUPS: tuple[tuple[str, str, str], ...] = (
     ("models", "Models: the math in plain numpy", "drake_uuv.models"),
     ("analysis", "Analysis: figures", "drake_uuv.analysis"),
     ("studies", "Studies: Monte Carlo and comparisons", "drake_uuv.studies"),
+    ("recordings", "Recordings: ROS bags and replay", "drake_uuv.recordings"),
+    ("hardware", "Hardware: the loop's halves over LCM", "drake_uuv.hardware"),
     ("visualization", "Visualization", "drake_uuv.visualization"),
     ("cli", "Command line", "drake_uuv.cli"),
 )
@@ -693,18 +701,36 @@ def package_modules() -> list[str]:
     return names
 
 
+def api_groups(modules: list[str]) -> list[tuple[str, str, str]]:
+    """:data:`API_GROUPS`, then a group for each top-level subpackage it does not list."""
+    listed = {prefix for _, _, prefix in API_GROUPS}
+    groups = list(API_GROUPS)
+    for module in modules:
+        parts = module.split(".")
+        if (
+            len(parts) == 2
+            and module not in listed
+            and hasattr(importlib.import_module(module), "__path__")
+        ):
+            doc = (importlib.import_module(module).__doc__ or module).strip().splitlines()[0]
+            groups.append((parts[1], doc.rstrip("."), module))
+    return groups
+
+
 def api_pages() -> dict[str, str]:
-    """``{file name: reST}`` of the API pages: each module in the group of its subpackage
-    (the top-level modules in ``core``)."""
-    subpackages = {prefix for _, _, prefix in API_GROUPS if prefix != PACKAGE}
-    grouped: dict[str, list[str]] = {prefix: [] for _, _, prefix in API_GROUPS}
-    for module in sorted(package_modules()):
+    """``{file name: reST}`` of the API pages: each module in the page of its top-level
+    subpackage (the top-level modules in ``core``), and ``index.rst`` listing the pages."""
+    modules = sorted(package_modules())
+    groups = api_groups(modules)
+    subpackages = {prefix for _, _, prefix in groups if prefix != PACKAGE}
+    grouped: dict[str, list[str]] = {prefix: [] for _, _, prefix in groups}
+    for module in modules:
         owner = next((p for p in subpackages if module == p or module.startswith(p + ".")), None)
         grouped[owner or PACKAGE].append(module)
+    header = ".. This page is written by docs/_ext/uuv_sphinx.py at each build."
     pages = {}
-    for slug, title, prefix in API_GROUPS:
-        lines = [".. This page is written by docs/_ext/uuv_sphinx.py at each build.", "",
-                 title, "=" * len(title) * 2, ""]  # fmt: skip
+    for slug, title, prefix in groups:
+        lines = [header, "", title, "=" * len(title) * 2, ""]
         for module in grouped[prefix]:
             heading = f"``{module}``"
             lines += [heading, "-" * len(heading) * 2, "", f".. automodule:: {module}"]
@@ -713,6 +739,12 @@ def api_pages() -> dict[str, str]:
                 lines += ["   :members:", "   :ignore-module-all:", "   :show-inheritance:"]
             lines.append("")
         pages[f"{slug}.rst"] = "\n".join(lines)
+    title = "Modules"
+    index = [header, "", title, "=" * len(title), "",
+             "One page per subpackage; the package's top-level modules are on the first.", "",
+             ".. toctree::", "   :maxdepth: 1", ""]  # fmt: skip
+    index += [f"   {slug}" for slug, _, _ in groups] + [""]
+    pages["index.rst"] = "\n".join(index)
     return pages
 
 
@@ -726,6 +758,20 @@ def write_api_pages(app: Sphinx) -> None:
             path.write_text(text)
     for stale in folder.glob("*.rst"):
         if stale.name not in pages:
+            stale.unlink()
+
+
+def copy_tutorials(app: Sphinx) -> None:
+    """The notebooks of ``tutorials/`` into ``docs/tutorials/`` (not committed: the notebooks
+    live beside the package, where their tests run them), when changed."""
+    folder = Path(app.srcdir) / "tutorials"
+    sources = {path.name: path for path in (ROOT / "tutorials").glob("*.ipynb")}
+    for name, source in sources.items():
+        copy = folder / name
+        if not copy.exists() or copy.read_bytes() != source.read_bytes():
+            shutil.copyfile(source, copy)
+    for stale in folder.glob("*.ipynb"):
+        if stale.name not in sources:
             stale.unlink()
 
 
@@ -753,6 +799,7 @@ def code_digest() -> str:
             *ROOT.glob("drake_uuv/scenarios/*.yaml"),
             *ROOT.glob("tutorials/*.ipynb"),
             ROOT / "pyproject.toml",
+            ROOT / "docs" / "conf.py",  # the kernels' environment is set there
         ]  # fmt: skip
     )
     for path in files:
@@ -817,6 +864,7 @@ def setup(app: Sphinx) -> dict[str, Any]:
     app.connect("autodoc-process-docstring", add_fields_table, priority=600)
     app.connect("autodoc-process-signature", drop_dataclass_signature)
     app.connect("builder-inited", write_api_pages)
+    app.connect("builder-inited", copy_tutorials)
     app.connect("builder-inited", check_notebook_cache)
     app.connect("env-get-outdated", notebooks_outdated)
     app.connect("missing-reference", resolve_reexport)

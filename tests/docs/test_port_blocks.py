@@ -25,6 +25,7 @@ uuv_sphinx = pytest.importorskip("uuv_sphinx", reason="the test extra: pip insta
         (None, []),
         (["fault_uniform (with dropouts or outliers)"],
          [("fault_uniform", "with dropouts or outliers")]),
+        (["<each signal of the channel>"], [("<each signal of the channel>", None)]),
     ],
 )  # fmt: skip
 def test_ports_and_their_conditions(entries, ports) -> None:

@@ -98,10 +98,13 @@ def _reference(site: Site) -> dict[str, str]:
     entries = {}
     for page in sorted((site.html / "reference" / "api").glob("*.html")):
         text = page.read_text()
-        starts = [(m.start(), m.group(1)) for m in re.finditer(
+        starts: list[tuple[int, str]] = [(m.start(), m.group(1)) for m in re.finditer(
         r'<dl class="py (?:class|function|exception|data)">\s*'
         r'<dt class="sig sig-object py" id="([\w.]+)"', text)]  # fmt: skip
-        for (start, name), (end, _) in zip(starts, [*starts[1:], (len(text), "")], strict=True):
+        if not starts:
+            continue
+        ends = [start for start, _ in starts[1:]] + [len(text)]
+        for (start, name), end in zip(starts, ends, strict=True):
             entries[name] = entries.get(name, "") + text[start:end]
     return entries
 
@@ -204,13 +207,16 @@ def test_the_signals_page_lists_every_signal(site: Site) -> None:
         assert f'id="{uuv_sphinx.signal_label(signal.name)}"' in page, signal.name
 
 
-def test_the_tutorial_ran_at_build_time(site: Site) -> None:
-    page = _page(site, "tutorials/drake_uuv_tutorial.html")
-    outputs = re.findall(r'<div class="cell_output docutils container">(.*?)</div>\s*</div>',
-                         page, re.DOTALL)  # fmt: skip
-    assert len(outputs) >= 8
-    assert page.count('<img alt="_images/') + page.count("<img ") >= 3
+@pytest.mark.parametrize(
+    "notebook", sorted(p.stem for p in (ROOT / "tutorials").glob("*.ipynb")), ids=str
+)
+def test_each_tutorial_ran_at_build_time(site: Site, notebook: str) -> None:
+    page = _page(site, f"tutorials/{notebook}.html")
+    outputs = re.findall(r'<div class="cell_output docutils container">', page)
+    assert len(outputs) >= 3
+    assert page.count("<img ") >= 2
     assert "Traceback" not in page
+    assert f'href="{notebook}.html"' in _page(site, "tutorials/index.html")
 
 
 def test_every_results_page_and_figure_is_there(site: Site) -> None:
