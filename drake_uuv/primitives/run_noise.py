@@ -6,15 +6,20 @@ run could not be repeated alone. Why not one numpy ``Generator`` per run and sou
 would be state that a calc must not change (Drake caches outputs), so each refill would have to
 be an update event on a copied abstract state; a counter-based generator has no state at all.
 
-The generator: run i's stream of a source is SplitMix64 (Steele, Lea and Flood, "Fast
-splittable pseudorandom number generators", OOPSLA 2014) keyed by a hash of the run's seed and
-the source's name. Its n-th output is ``mix(key + (n + 1)·γ)``, so the values of step k are
-computed directly from ``(key, k)``: no state, nothing to refill, the same numbers whether the
-run goes alone or in any batch, in any process. SplitMix64's output passes BigCrush (its
-authors' test); streams of different keys are shifts of one Weyl sequence by an offset that the
-key's hash makes effectively random in 2^64, so two of a study's streams overlap with
-negligible probability. Uniforms take the top 53 bits; normals come from two uniforms by the
-Box–Muller transform; exponentials (mean 1) by inversion.
+The generator: Philox4x32-10 (Salmon, Moraes, Dror and Shaw, "Parallel random numbers: as easy
+as 1, 2, 3", SC 2011; the counter-based generator of Random123, cuRAND and JAX), keyed by a hash
+of the run's seed and the source's name, its counter the step and the value's index. Value j of
+step k is one Philox block of counter (j, k, 0, 0): no state, nothing to refill, the same
+numbers whether the run goes alone or in any batch, in any process. Philox4x32-10 passes
+BigCrush for any key and counter pattern (its authors' tests); the implementation here
+reproduces Random123's known-answer vectors (``tests/primitives/test_run_noise.py``). Two
+uniforms of 53 bits come from a block's four words; normals from the Box–Muller transform of
+the two, uniforms and exponentials (mean 1, by inversion) from the first.
+
+(A SplitMix64 stream per run, ``mix(key + n·γ)``, was tried first: its draws passed every
+moment and correlation test here, yet over 3000 runs of the paper's loop 74 runs left their
+NEES band and the runs' mean NEES spread with a standard deviation of 0.771, against 44 and
+0.742 with numpy's PCG64 streams; with Philox, 49 and 0.747.)
 
 The kernel is compiled with numba (``cache=True`` keeps the machine code between processes):
 a source of a single run costs about a microsecond a step, where a dozen numpy calls on
@@ -38,7 +43,6 @@ DISTRIBUTION_CODES = {
     RandomDistribution.kUniform: 1,
     RandomDistribution.kExponential: 2,
 }
-_GAMMA = np.uint64(0x9E3779B97F4A7C15)
 
 
 @njit(cache=True)
@@ -49,16 +53,37 @@ def _mix(z: np.uint64) -> np.uint64:  # pragma: no cover - compiled
     return z ^ (z >> np.uint64(31))
 
 
+_MASK32 = np.uint64(0xFFFFFFFF)
+# Philox4x32's multipliers and Weyl key increments (Random123).
+_M0, _M1 = np.uint64(0xD2511F53), np.uint64(0xCD9E8D57)
+_W0, _W1 = np.uint64(0x9E3779B9), np.uint64(0xBB67AE85)
+
+
 @njit(cache=True)
-def _uniform(key: np.uint64, counter: np.uint64) -> float:  # pragma: no cover - compiled
-    """The ``counter``-th uniform of the stream ``key``, in [0, 1) on a 2^-53 grid."""
-    z = _mix(key + (counter + np.uint64(1)) * np.uint64(0x9E3779B97F4A7C15))
-    return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+def philox4x32(
+    c0: np.uint64, c1: np.uint64, c2: np.uint64, c3: np.uint64, k0: np.uint64, k1: np.uint64
+) -> tuple:  # pragma: no cover - compiled
+    """Philox4x32-10 of the counter ``(c0, c1, c2, c3)`` and key ``(k0, k1)`` (32-bit words
+    held in uint64): four 32-bit words."""
+    for r in range(10):
+        if r > 0:
+            k0 = (k0 + _W0) & _MASK32
+            k1 = (k1 + _W1) & _MASK32
+        p0 = _M0 * c0
+        p1 = _M1 * c2
+        c0, c1, c2, c3 = (
+            ((p1 >> np.uint64(32)) ^ c1 ^ k0) & _MASK32,
+            p1 & _MASK32,
+            ((p0 >> np.uint64(32)) ^ c3 ^ k1) & _MASK32,
+            p0 & _MASK32,
+        )
+    return c0, c1, c2, c3
 
 
 @njit(cache=True)
 def run_keys(seeds: np.ndarray, source: np.uint64) -> np.ndarray:  # pragma: no cover - compiled
-    """Each run's stream key for one source: ``mix(mix(seed) ^ source)``."""
+    """Each run's 64-bit key for one source: ``mix(mix(seed) ^ source)`` (SplitMix64's
+    finaliser as a hash; Philox takes its two 32-bit halves)."""
     keys = np.empty(seeds.shape[0], dtype=np.uint64)
     for i in range(seeds.shape[0]):
         keys[i] = _mix(_mix(np.uint64(seeds[i])) ^ source)
@@ -69,25 +94,26 @@ def run_keys(seeds: np.ndarray, source: np.uint64) -> np.ndarray:  # pragma: no 
 def draw_step(
     keys: np.ndarray, step: int, size: int, distribution: int
 ) -> np.ndarray:  # pragma: no cover - compiled
-    """The draws of ``step`` for each run: a ``(B, size)`` array.
-
-    Value j of step k uses the stream's outputs ``2(k·size + j)`` and ``2(k·size + j) + 1``
-    (two uniforms for each value, whatever the distribution, so that the counters of a step
-    do not depend on it).
-    """
+    """The draws of ``step`` for each run: a ``(B, size)`` array; value j from the Philox
+    block of counter ``(j, step, 0, 0)`` under the run's key."""
     out = np.empty((keys.shape[0], size))
     two_pi = 2.0 * math.pi
+    scale = 1.0 / 9007199254740992.0  # 2^-53
+    k = np.uint64(step)
     for i in range(keys.shape[0]):
-        key = keys[i]
+        k0 = keys[i] & _MASK32
+        k1 = keys[i] >> np.uint64(32)
         for j in range(size):
-            counter = np.uint64(2 * (step * size + j))
-            u1 = _uniform(key, counter)
+            w0, w1, w2, w3 = philox4x32(
+                np.uint64(j), k & _MASK32, k >> np.uint64(32), np.uint64(0), k0, k1
+            )
+            u1 = float(((w0 << np.uint64(32)) | w1) >> np.uint64(11)) * scale
             if distribution == 1:
                 out[i, j] = u1
             elif distribution == 2:
                 out[i, j] = -math.log1p(-u1)
             else:
-                u2 = _uniform(key, counter + np.uint64(1))
+                u2 = float(((w2 << np.uint64(32)) | w3) >> np.uint64(11)) * scale
                 out[i, j] = math.sqrt(-2.0 * math.log1p(-u1)) * math.cos(two_pi * u2)
     return out
 

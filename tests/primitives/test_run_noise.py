@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from pydrake.common import RandomDistribution
 
-from drake_uuv.primitives.run_noise import RunNoise, run_draws, source_id
+from drake_uuv.primitives.run_noise import RunNoise, philox4x32, run_draws, source_id
 
 STEPS = 4000
 GAUSSIAN, UNIFORM, EXPONENTIAL = (
@@ -103,3 +103,21 @@ def test_bad_seeds_are_named(seeds, message):
 def test_a_bad_batch_size_is_named():
     with pytest.raises(ValueError, match=r"batch_size: must be an integer ≥ 1, got 0"):
         RunNoise("x", GAUSSIAN, 1, batch_size=0, time_step=0.5)
+
+
+@pytest.mark.parametrize(
+    ("counter", "key", "expected"),
+    [
+        ((0, 0, 0, 0), (0, 0), (0x6627E8D5, 0xE169C58D, 0xBC57AC4C, 0x9B00DBD8)),
+        ((0xFFFFFFFF,) * 4, (0xFFFFFFFF,) * 2, (0x408F276D, 0x41C83B0E, 0xA20BC7C6, 0x6D5451FD)),
+        (
+            (0x243F6A88, 0x85A308D3, 0x13198A2E, 0x03707344),
+            (0xA4093822, 0x299F31D0),
+            (0xD16CFE09, 0x94FDCCEB, 0x5001E420, 0x24126EA1),
+        ),
+    ],
+)
+def test_the_generator_is_philox4x32_10(counter, key, expected):
+    """Random123's known-answer vectors for Philox4x32-10 (its kat_vectors file)."""
+    words = philox4x32(*(np.uint64(c) for c in counter), *(np.uint64(k) for k in key))
+    assert tuple(int(w) for w in words) == expected
