@@ -12,6 +12,7 @@ modules may import each other relatively and import anything from ``drake_uuv``;
 * :mod:`.regimes`: the ``regimes`` group (noise and standoff × estimator);
 * :mod:`.attitude`: the ``attitude`` and ``attitude_vehicle`` groups;
 * :mod:`.navigation`: the ``navigation`` group (navigation errors and sonar timing);
+* :mod:`.robustness`: the ``robustness`` group (does any run get lost, over many seeds);
 * :mod:`.paired`: the paired per-seed comparison of two study folders (a script too);
 * :mod:`.results_sections`: the results page's sections beyond the paper's claims.
 
@@ -26,6 +27,7 @@ from .attitude import ATTITUDE_GROUP, ATTITUDE_VEHICLE_GROUP
 from .navigation import NAVIGATION_GROUP
 from .paper import ALPHA_GROUP, ATTITUDE_NOISE_GROUP, ESTIMATOR_GROUP, TRACKING_GROUP
 from .regimes import REGIMES_GROUP
+from .robustness import ROBUSTNESS_GROUP
 from .vehicle import VEHICLE_GROUP
 
 # Every group of `drake-uuv compare --group NAME`, in the order `--group list` shows them.
@@ -39,4 +41,5 @@ GROUPS: list[Group] = [
     ATTITUDE_GROUP,
     ATTITUDE_VEHICLE_GROUP,
     NAVIGATION_GROUP,
+    ROBUSTNESS_GROUP,
 ]

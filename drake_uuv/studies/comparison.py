@@ -45,6 +45,13 @@ class Variant:
     # A shipped scenario (or file) the variant starts from instead of the comparison's base
     # (whose overrides and seed still apply first): e.g. the ``realistic`` scenario's rows.
     scenario: str | None = None
+    # The share of the comparison's --runs this row runs (at least one): a row that costs
+    # much more a run (the hovering UUV) may run fewer.
+    run_fraction: float = 1.0
+
+    def runs(self, runs: int) -> int:
+        """The runs of this row at the comparison's ``runs``."""
+        return max(1, round(runs * self.run_fraction))
 
 
 # Short names of variants in row names ("kf-trajectory"); others use their tag in snake case.
@@ -220,8 +227,8 @@ class BaseScenario:
 def variant_studies(
     variants: Sequence[Variant], out_dir: Path, runs: int, base: BaseScenario = BaseScenario()
 ) -> list[Study]:
-    """The study of each variant: ``base`` and then the variant's overrides, ``runs`` runs in
-    ``out_dir/studies/<variant>``."""
+    """The study of each variant: ``base`` and then the variant's overrides, ``runs`` runs
+    (its share of them, :meth:`Variant.runs`) in ``out_dir/studies/<variant>``."""
     return [
         Study(
             variant.name,
@@ -230,7 +237,7 @@ def variant_studies(
                 [*base.overrides, *variant.overrides],
                 seed=base.seed,
             ),
-            runs,
+            variant.runs(runs),
             Path(out_dir) / "studies" / _slug(variant.name),
         )
         for variant in variants

@@ -140,13 +140,15 @@ def compare_groups(
 
 def format_group_list(groups: Mapping[str, Group], runs: int) -> str:
     """``--group list``: each group's name, variants, runs at ``runs`` per variant, and line."""
-    counts = {name: len(group.variants()) for name, group in groups.items()}
+    variants = {name: group.variants() for name, group in groups.items()}
+    counts = {name: len(rows) for name, rows in variants.items()}
+    total = {name: sum(row.runs(runs) for row in rows) for name, rows in variants.items()}
     width = max(len("group"), *(len(name) + 1 for name in groups))
     lines = [f"{'group':<{width}}  variants  {'runs':>6}  description"]
     for name, group in groups.items():
         label = name + ("*" if group.paper else "")
         lines.append(
-            f"{label:<{width}}  {counts[name]:>8}  {counts[name] * runs:>6}  {group.description}"
+            f"{label:<{width}}  {counts[name]:>8}  {total[name]:>6}  {group.description}"
         )
     lines.append(f"runs at --runs {runs}; * the paper's groups, run when no --group is given")
     return "\n".join(lines)

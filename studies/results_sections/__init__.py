@@ -12,11 +12,12 @@ from typing import Any
 
 Section = Callable[[Path, Path, int, dict[str, Any]], str]
 
-from . import attitude, navigation, regimes, vehicle  # noqa: E402  (after Section, which they do not need)
+from . import attitude, navigation, regimes, robustness, vehicle  # noqa: E402  (after Section, which they do not need)
 
 SECTIONS: list[Section] = [
     vehicle.section,
     regimes.section,
     attitude.section,
     navigation.section,
+    robustness.section,
 ]
