@@ -5,8 +5,14 @@ A run's log maps each signal's name to its values at the N steps (``N×shape``),
 ``time`` still (N), shared. :func:`batch_metrics` is the one implementation of the metrics,
 over a batch (each metric a (B,) array, every reduction along a run's own steps, so run i's
 metrics are the same bits as :func:`run_metrics` of its own log); :func:`run_metrics` is a
-batch of one. :func:`errors`, :func:`run_information` and :func:`bound_covariances` take a
-run's log or a batch log alike (a leading run axis in, a leading run axis out).
+batch of one. :func:`errors` takes a run's log or a batch log alike (a leading run axis in, a
+leading run axis out).
+
+The views between a run's log and a batch log are :mod:`drake_uuv.batch_logs`'; the bounds
+along a run's true trajectory (:func:`run_information`, :func:`bound_covariances`,
+:func:`extended_bound`, :func:`ping_arrivals`, :func:`bound_errors_on`)
+:mod:`drake_uuv.run_bounds`', whose RMSEs are among the metrics. Both are importable from
+here too.
 """
 
 import math
@@ -14,26 +20,41 @@ import math
 import numpy as np
 from numba import njit
 
-from drake_uuv.models.measurement import VALID, range_difference_noise
-from drake_uuv.models.navigation_noise import (
-    commanded_acceleration_noise,
-    heading_bias_floor,
-    navigated_velocity_covariance,
-    range_attitude_jacobian,
-    rotation_vector_covariance,
-    sound_speed_floor,
-)
-from drake_uuv.models.pcrlb import (
-    bound_rmse_runs,
-    cholesky6,
-    lower_inverse6,
-    measurement_information,
-    pcrlb_recursion,
-)
-from drake_uuv.models.pcrlb_timed import pcrlb_timed
-from drake_uuv.models.ping_geometry import interpolate_attitude
+from drake_uuv.batch_logs import SHARED_KEYS, batch_log, run_log
+from drake_uuv.models.pcrlb import bound_rmse_runs, cholesky6, lower_inverse6
 from drake_uuv.models.tracking_laws import desired_relative_positions
+from drake_uuv.run_bounds import (
+    bound_covariances,
+    bound_errors_on,
+    extended_bound,
+    ping_arrivals,
+    run_information,
+)
 from drake_uuv.scenario import Scenario
+
+# The batch logs' views and the bounds, importable from here as before.
+__all__ = [
+    "METRICS_CHUNK",
+    "METRIC_SIGNALS",
+    "SHARED_KEYS",
+    "attitude_metrics",
+    "batch_log",
+    "batch_metrics",
+    "bound_covariances",
+    "bound_errors_on",
+    "bound_metrics",
+    "errors",
+    "extended_bound",
+    "metric_signals",
+    "model_acceleration_rmse",
+    "ping_arrivals",
+    "rms_norm",
+    "run_information",
+    "run_log",
+    "run_metrics",
+    "smallest_eigenvalues",
+    "vehicle_metrics",
+]
 
 #: The log's signals that a run's metrics and warnings (:func:`run_metrics`,
 #: :func:`drake_uuv.diagnostics.run_warnings`) and a study's per-run arrays (errors, information)
@@ -56,15 +77,6 @@ def metric_signals(scenario: Scenario) -> frozenset[str]:
     if bound_errors_on(scenario):
         return METRIC_SIGNALS | {"ping_time", "p_TS_W"}
     return METRIC_SIGNALS
-
-
-# A ping time short of a tick by less than this fraction of a step (rounding of k t + τ)
-# belongs to that tick's step: the sonar's own tolerance for its delays.
-_STEP_TOLERANCE = 1e-9
-
-
-#: The keys of a log that are not a run's signal: shared by the runs of a batch log.
-SHARED_KEYS = frozenset({"k", "time"})
 
 
 def errors(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, np.ndarray]:
@@ -154,258 +166,6 @@ def _nees_kernel(e: np.ndarray, P: np.ndarray, nees: np.ndarray, undecided: np.n
             undecided[n] = True
             continue
         nees[n] = value
-
-
-def run_information(
-    log: dict[str, np.ndarray], scenario: Scenario, out: np.ndarray | None = None
-) -> np.ndarray:
-    """Fisher information ``M(k)`` (N×6×6) of the raw ranges, all f samples, on this run's true
-    trajectory; a sonar without a return (``sonar_status`` not VALID) contributes nothing.
-
-    Summed over runs it gives the Monte Carlo PCRLB (:func:`~drake_uuv.models.pcrlb.
-    pcrlb_over_runs`, see :mod:`drake_uuv.studies.statistics`). This is today's information
-    whatever the navigation and the sonar timing: each range that arrives at a tick counts
-    there, at the tick's geometry, with the sonar's noise alone (:func:`bound_errors_on`
-    says when the per-run bound of :func:`bound_covariances` is the extended one instead).
-    """
-    available = log["sonar_status"] == VALID if "sonar_status" in log else None
-    return measurement_information(  # a batch log: B×N×6×6
-        log["p_WU"] - log["p_WT"],
-        log["b_W"],
-        np.asarray(scenario.sonar.noise_variances, dtype=float),
-        scenario.sonar.samples_per_step,
-        available,
-        out,
-    )
-
-
-@njit(cache=True)
-def _baseline_information_kernel(q_s: np.ndarray, weight: np.ndarray, out: np.ndarray) -> None:
-    """``w q_s q_sᵀ`` in each step's position block, zero elsewhere: the information of the
-    paper's ``Y`` (``C = [q_sᵀ, 0]``, weight ``1/Γ`` where both ranges arrived)."""
-    for n in range(q_s.shape[0]):
-        out[n] = 0.0
-        for i in range(3):
-            wq = weight[n] * q_s[n, i]
-            for j in range(3):
-                out[n, i, j] = wq * q_s[n, j]
-
-
-def bound_covariances(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, np.ndarray]:
-    """Two covariance bounds (N×6×6 each) along this run's true trajectory.
-
-    - ``pcrlb``: the posterior Cramér–Rao bound of the raw two-range measurement (all f
-      samples), prior ``P(0|−1)`` = ``estimator.initial_covariance``
-      (:mod:`drake_uuv.models.pcrlb`). Per run it is the bound *given this trajectory*;
-      the proven Monte Carlo bound averages the information over runs instead.
-    - ``kf_riccati``: the paper's KF's Riccati covariance with the noise variance ``Γ`` of its
-      ``Y`` (first sample of each sonar, the ``derived`` model) on the true ranges: the MSE of
-      the paper's KF when its noise model is right, what it would reach on this trajectory.
-      It stays today's with navigation errors and sonar timing: ``Y`` at each tick where
-      both ranges arrive, on the tick's geometry.
-
-    With navigation errors or sonar timing (:func:`bound_errors_on`), ``pcrlb`` is the
-    extended bound of :func:`extended_bound` (floors included), and ``pcrlb_floor`` is the
-    floors' part of it.
-    """
-    e = scenario.estimator
-    q = log["p_WU"] - log["p_WT"]
-    eta = np.asarray(scenario.sonar.noise_variances, dtype=float).reshape(2, *[1] * (q.ndim - 1))
-    P0 = np.asarray(e.initial_covariance, dtype=float)
-    W = np.asarray(scenario.target.acceleration_covariance, dtype=float)
-    q_s = log["b_W"]
-    half = 0.5 * q_s
-    squared = np.stack([np.sum((q + half) ** 2, axis=-1), np.sum((q - half) ** 2, axis=-1)])
-    # Mean of the squared noisy ranges is d² + η: the noise model then sees the true d².
-    _, gamma = range_difference_noise("derived", eta, squared + eta)
-    # The KF's Riccati recursion in information form (C = [q_sᵀ, 0], Y needs both ranges),
-    # equal to its Joseph form (pcrlb.kf_riccati_covariance) to rounding, run in one batch
-    # with the PCRLB: half the time of two recursions.
-    information = np.empty((2, *q_s.shape[:-1], 6, 6))
-    run_information(log, scenario, out=information[0])
-    both = np.all(log["sonar_status"] == VALID, axis=-1) if "sonar_status" in log else True
-    weight = np.broadcast_to(np.where(both, 1.0 / gamma, 0.0), q_s.shape[:-1])
-    _baseline_information_kernel(
-        np.ascontiguousarray(q_s, dtype=float).reshape(-1, 3),
-        np.ascontiguousarray(weight).reshape(-1),
-        information[1].reshape(-1, 6, 6),
-    )
-    pcrlb, riccati = pcrlb_recursion(information, P0, W, scenario.time_step)
-    if not bound_errors_on(scenario):
-        return {"pcrlb": pcrlb, "kf_riccati": riccati}
-    if q.ndim == 2:
-        bound, floor = extended_bound(log, scenario)
-    else:  # the timed bound is a run's recursion: one run at a time
-        bound, floor = (
-            np.stack(parts)
-            for parts in zip(
-                *(_extended_bound_of_run(run_log(log, i), scenario) for i in range(len(q))),
-                strict=True,
-            )
-        )
-    return {"pcrlb": bound + floor, "kf_riccati": riccati, "pcrlb_floor": floor}
-
-
-def _extended_bound_of_run(
-    log: dict[str, np.ndarray], scenario: Scenario
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`extended_bound` of one run of a batch; NaN for a failed run (a non-finite true
-    state or baseline in its log) whose pings it cannot read, so that run does not stop the
-    batch's metrics (a sound run's error still raises)."""
-    try:
-        return extended_bound(log, scenario)
-    except (ValueError, np.linalg.LinAlgError):
-        state = ("p_WU", "v_WU", "p_WT", "v_WT", "R_WB", "b_W")
-        if all(np.isfinite(log[name]).all() for name in state):
-            raise
-        nan = np.full((len(log["p_WU"]), 6, 6), np.nan)
-        return nan, nan
-
-
-def run_log(log: dict[str, np.ndarray], run: int) -> dict[str, np.ndarray]:
-    """Run ``run``'s own log (views) from a batch log."""
-    return {name: value if name in SHARED_KEYS else value[run] for name, value in log.items()}
-
-
-def batch_log(log: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """A run's log as a batch log of one run (views with a leading axis of 1)."""
-    return {
-        name: value if name in SHARED_KEYS else np.asarray(value)[np.newaxis]
-        for name, value in log.items()
-    }
-
-
-def bound_errors_on(scenario: Scenario) -> bool:
-    """Whether the navigation, the sonars' timing or the sound speed is other than the
-    paper's (perfect navigation, both pings at the tick without latency, ε = 0): then the
-    per-run bound is :func:`extended_bound`."""
-    return bool(
-        scenario.navigation.error_figures().any
-        or _sonar_timing_on(scenario)
-        or scenario.sonar.sound_speed_error != 0.0
-    )
-
-
-def _sonar_timing_on(scenario: Scenario) -> bool:
-    sonar = scenario.sonar
-    return any(offset != 0.0 for offset in sonar.ping_offsets) or sonar.latency != 0.0
-
-
-def ping_arrivals(
-    log: dict[str, np.ndarray], scenario: Scenario
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each step's pings that arrive, from the ranges the log shows arriving at each tick.
-
-    Returns ``(tau, lag, p_TS)``: for sonar i's ping of step k, entry ``[k, i]`` holds its
-    offset in the step [s] (NaN when no range of it arrives valid), the ticks from k to its
-    arrival, and (``[k, i, :]``) its sonar's position relative to the target at the ping.
-    An arrival at tick j counts when its ``sonar_status`` is VALID; its step is the tick its
-    ``ping_time`` follows. A log without ``ping_time`` and ``p_TS_W`` (a sonar pinging at
-    the tick, without latency) gives ``τ = 0``, lag 0 and ``q ± ½ b_W``.
-    """
-    steps, t = len(log["p_WU"]), scenario.time_step
-    valid = log["sonar_status"] == VALID if "sonar_status" in log else np.ones((steps, 2), bool)
-    if "ping_time" not in log or "p_TS_W" not in log:
-        sonar = scenario.sonar
-        if _sonar_timing_on(scenario):
-            raise ValueError(
-                "log: has no 'ping_time' and 'p_TS_W', which the bound needs with sonar "
-                f"ping_offsets {sonar.ping_offsets} and latency {sonar.latency}"
-            )
-        half = 0.5 * log["b_W"]
-        q = log["p_WU"] - log["p_WT"]
-        return (
-            np.where(valid, 0.0, np.nan),
-            np.zeros((steps, 2), int),
-            np.stack([q + half, q - half], 1),
-        )
-    tau = np.full((steps, 2), np.nan)
-    lag = np.zeros((steps, 2), int)
-    p_TS = np.zeros((steps, 2, 3))
-    ticks, sonars = np.nonzero(valid)
-    ping_time = log["ping_time"][ticks, sonars]
-    step = np.floor(ping_time / t + _STEP_TOLERANCE).astype(int)
-    if np.any((step < 0) | (step > ticks)):
-        raise ValueError(f"log: ping_time {ping_time} must be at or before the arrival ticks")
-    if len(set(zip(step, sonars, strict=True))) < len(step):
-        raise ValueError("log: a sonar's ping of one step arrives twice")
-    tau[step, sonars] = np.maximum(ping_time - step * t, 0.0)
-    lag[step, sonars] = ticks - step
-    p_TS[step, sonars] = log["p_TS_W"].reshape(steps, 2, 3)[ticks, sonars]
-    return tau, lag, p_TS
-
-
-def extended_bound(log: dict[str, np.ndarray], scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
-    """The per-run PCRLB with navigation errors and sonar timing, and its error floors
-    (N×6×6 each; the bound proper excludes the floors, the metrics add them).
-
-    On this run's true trajectory (:mod:`drake_uuv.models.pcrlb_timed`,
-    :mod:`drake_uuv.models.navigation_noise` for the models and their derivations):
-
-    - each range at its ping time, counted from the tick it arrives (:func:`ping_arrivals`);
-    - the range noise ``η/f`` plus, with ``!InertialNavigation``, the attitude noise's
-      ``J Σ_θ Jᵀ`` (``Σ_θ`` at the step's true attitude, ``J`` at each ping's geometry);
-    - with ``estimator.vehicle_motion: commanded``, ``W + [a]× Σ_θ [a]×ᵀ`` per step (``a``:
-      the log's ``u1_W``); with ``navigation``, the navigated velocity's error
-      ``Σ_ev = (σ_v² + σ_b²) I + [v]× Σ_θ [v]×ᵀ`` (the DVL's noise and bias, and the attitude
-      noise turning the true velocity ``v``) as a position process noise ``t² Σ_ev`` per step,
-      and ``Σ_ev`` added to the velocity block at each tick;
-    - floors: the heading bias's ``σ_ψ² g gᵀ`` and the sound speed's ``ε² q qᵀ``.
-
-    The bound is the estimator's whatever it believes (``estimator.error_model`` does not
-    enter): it is what the data allow.
-    """
-    t = scenario.time_step
-    nav = scenario.navigation.error_figures()
-    motion = scenario.estimator.vehicle_motion
-    tau, lag, p_TS = ping_arrivals(log, scenario)
-    R_WB = log["R_WB"]
-    Sigma = rotation_vector_covariance(R_WB, nav.attitude_noise)
-    W = np.asarray(scenario.target.acceleration_covariance, dtype=float)
-    if motion == "commanded":
-        W = W + commanded_acceleration_noise(log["u1_W"], Sigma)
-    velocity = np.zeros((len(R_WB), 3, 3))
-    if motion == "navigation":  # the navigated velocity's error Σ_ev, on the true motion
-        velocity += navigated_velocity_covariance(
-            log["v_WU"], Sigma, nav.velocity_noise, nav.velocity_bias
-        )
-    bound = pcrlb_timed(
-        tau,
-        lag,
-        p_TS,
-        _range_noise(tau, p_TS, R_WB, Sigma, scenario),
-        np.asarray(scenario.estimator.initial_covariance, dtype=float),
-        W,
-        t,
-        position_noise=t * t * velocity,
-    )
-    bound[:, 3:, 3:] += velocity
-    q, velocity = log["p_WU"] - log["p_WT"], log["v_WU"] - log["v_WT"]
-    floor = heading_bias_floor(q, velocity, nav.heading_bias)
-    floor += sound_speed_floor(q, scenario.sonar.sound_speed_error)
-    return bound, floor
-
-
-def _range_noise(
-    tau: np.ndarray, p_TS: np.ndarray, R_WB: np.ndarray, Sigma: np.ndarray, scenario: Scenario
-) -> np.ndarray:
-    """The covariance (N×2×2) of each step's two range errors: ``diag(η/f) + J Σ_θ Jᵀ``, the
-    baseline at each ping from the attitude's geodesic between the step's ticks."""
-    sonar = scenario.sonar
-    noise = np.zeros(tau.shape + (2,))
-    noise[:, [0, 1], [0, 1]] = (
-        np.asarray(sonar.noise_variances, dtype=float) / sonar.samples_per_step
-    )
-    if not np.any(Sigma):
-        return noise
-    b = np.asarray(sonar.baseline, dtype=float)
-    q_s = np.zeros(p_TS.shape)
-    for k, i in zip(*np.nonzero(np.isfinite(tau)), strict=True):
-        s = tau[k, i] / scenario.time_step
-        R = R_WB[k] if s == 0.0 else interpolate_attitude(R_WB[k], R_WB[k + 1], s)
-        q_s[k, i] = R @ b
-    J = range_attitude_jacobian(p_TS, q_s)
-    return noise + J @ Sigma @ np.swapaxes(J, -1, -2)
 
 
 def rms_norm(values: np.ndarray) -> float:

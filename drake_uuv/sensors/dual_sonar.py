@@ -120,7 +120,7 @@ class DualSonar(Diagram):
     apply to each ping's own geometry and add ports only when switched on: ``x_TU_prior``
     (6) and ``P_TU_prior`` (36), the estimator's prediction of the ping's tick, which the
     pan-tilts point at (by the navigated attitude ``R_WB_nav`` (9);
-    :func:`~drake_uuv.sensors.sonar_kernels.beam_axis`); the random ports
+    :func:`~drake_uuv.sensors.sonar_geometry.beam_axis`); the random ports
     ``fault_uniform`` (4, uniform: dropout then outlier draws per sonar) and
     ``multipath_noise`` (2, exponential), drawn when the ping is measured.
 

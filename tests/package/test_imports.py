@@ -41,6 +41,8 @@ LAYERS: list[set[str]] = [
     {
         "simulation",
         "metrics",
+        "run_bounds",
+        "batch_logs",
         "diagnostics",
         ROOT,
     },  # runs of it (the facade exports ClosedLoopSimulation)

@@ -53,6 +53,7 @@ FROZEN = Recipe(
     module_text='''
         """An estimator that publishes its initial estimate (the recipe's example)."""
 
+        import numpy as np
         from pydrake.systems.framework import Context
 
         from drake_uuv.estimators.base import (
@@ -62,10 +63,12 @@ FROZEN = Recipe(
             Ranges,
             RelativeStateEstimator,
         )
+        from drake_uuv.models.measurement import VALID
 
 
         class FrozenEstimator(RelativeStateEstimator):
-            """Publishes ``Υ̂(0|−1)`` and ``P(0|−1)`` at every step; ports as the base's."""
+            """Publishes ``Υ̂(0|−1)`` and ``P(0|−1)`` at every step; ports as the base's (with
+            ``batch_size`` B, which the base takes, every port holds B runs row-major)."""
 
             def measurement_update(
                 self, context: Context, prior: Estimate, ranges: Ranges
@@ -73,8 +76,15 @@ FROZEN = Recipe(
                 return None
 
             def filtered_estimate(self, context: Context) -> FilteredEstimate:
-                start = self.initial_estimate
-                return FilteredEstimate(start.x.copy(), start.P.copy())
+                B, start = self.batch_size, self.initial_estimate
+                status = self.ranges(context).status  # (B, 2): each run's step, not updated
+                first = status[:, 0]
+                return FilteredEstimate(
+                    np.tile(start.x, (B, 1)),
+                    np.tile(start.P, (B, 1, 1)),
+                    np.where(first != VALID, first, status[:, 1]),
+                    np.full(B, np.nan),
+                )
         ''',
     config_file="drake_uuv/scenario/estimators.py",
     config_text='''
@@ -113,14 +123,17 @@ SPIN = Recipe(
     module_text='''
         """Turns about the world's vertical at a constant rate (the recipe's example)."""
 
+        import numpy as np
         from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
         from drake_uuv.attitude.base import AttitudeSetting
+        from drake_uuv.primitives.batch import batch_size_field, per_run
         from drake_uuv.scenario.attitude import Spin
 
 
         class SpinAttitude(LeafSystem):
-            """``u2 = [0, 0, rate]``; the plan holds the current attitude.
+            """``u2 = [0, 0, rate]``; the plan holds the current attitude (sizes per run:
+            with ``batch_size`` B every port holds B runs row-major).
 
             .. pydrake_system::
 
@@ -132,19 +145,22 @@ SPIN = Recipe(
                 - R_WB_plan
             """
 
-            def __init__(self, config: Spin, *, setting: AttitudeSetting) -> None:
+            def __init__(
+                self, config: Spin, *, setting: AttitudeSetting, batch_size: int = 1
+            ) -> None:
                 super().__init__()
+                self.batch_size = B = batch_size_field(batch_size)
                 self._rate = config.rate
-                self._attitude = self.DeclareVectorInputPort("R_WB_nav", 9)
-                self.DeclareVectorOutputPort("u2_W", 3, self._calc_rate)
-                self.DeclareVectorOutputPort("R_WB_plan", 18, self._calc_plan)
+                self._attitude = self.DeclareVectorInputPort("R_WB_nav", 9 * B)
+                self.DeclareVectorOutputPort("u2_W", 3 * B, self._calc_rate)
+                self.DeclareVectorOutputPort("R_WB_plan", 18 * B, self._calc_plan)
 
             def _calc_rate(self, context: Context, output: BasicVector) -> None:
-                output.set_value([0.0, 0.0, self._rate])
+                output.set_value(np.tile([0.0, 0.0, self._rate], self.batch_size))
 
             def _calc_plan(self, context: Context, output: BasicVector) -> None:
-                R = self._attitude.Eval(context)
-                output.set_value([*R, *R])
+                R = per_run(self._attitude.Eval(context), self.batch_size)  # (B, 9)
+                output.set_value(np.hstack([R, R]).ravel())
         ''',
     config_file="drake_uuv/scenario/attitude.py",
     config_text='''
@@ -194,13 +210,15 @@ DRIFTING = Recipe(
         from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
         from drake_uuv.models.motion import double_integrator_step
-        from drake_uuv.models.so3 import exp_so3
+        from drake_uuv.models.so3 import exp_so3_runs
         from drake_uuv.plants.base import PlantSetting
+        from drake_uuv.primitives.batch import batch_size_field, per_run, tiled
         from drake_uuv.scenario.plants import DriftingUuv
 
 
         class DriftingUuvPlant(LeafSystem):
-            """The paper's plant plus a current c: ``p(k+1) = p + t v + ½t² R u1 + t c``.
+            """The paper's plant plus a current c: ``p(k+1) = p + t v + ½t² R u1 + t c`` (sizes
+            per run: with ``batch_size`` B every port and state holds B runs row-major).
 
             .. pydrake_system::
 
@@ -214,30 +232,35 @@ DRIFTING = Recipe(
                 - R_WB
             """
 
-            def __init__(self, config: DriftingUuv, *, setting: PlantSetting) -> None:
+            def __init__(
+                self, config: DriftingUuv, *, setting: PlantSetting, batch_size: int = 1
+            ) -> None:
                 super().__init__()
+                self.batch_size = B = batch_size_field(batch_size)
                 self._t = setting.time_step
                 self._current = np.asarray(config.current, dtype=float)
-                self._u1 = self.DeclareVectorInputPort("u1_B", 3)
-                self._u2 = self.DeclareVectorInputPort("u2_W", 3)
-                self._p = self.DeclareDiscreteState(np.asarray(setting.initial_position, float))
-                self._v = self.DeclareDiscreteState(np.asarray(setting.initial_velocity, float))
-                self._R = self.DeclareDiscreteState(np.asarray(setting.initial_R_WB).ravel())
+                self._u1 = self.DeclareVectorInputPort("u1_B", 3 * B)
+                self._u2 = self.DeclareVectorInputPort("u2_W", 3 * B)
+                self._p = self.DeclareDiscreteState(tiled(setting.initial_position, B))
+                self._v = self.DeclareDiscreteState(tiled(setting.initial_velocity, B))
+                self._R = self.DeclareDiscreteState(tiled(setting.initial_R_WB, B))
                 self.DeclarePeriodicDiscreteUpdateEvent(self._t, 0.0, self._update)
                 self.DeclareStateOutputPort("p_WU", self._p)
                 self.DeclareStateOutputPort("v_WU", self._v)
                 self.DeclareStateOutputPort("R_WB", self._R)
 
             def _update(self, context: Context, state: DiscreteValues) -> None:
-                values = context.get_discrete_state()
-                R = values.value(self._R).reshape(3, 3)
+                values, B = context.get_discrete_state(), self.batch_size
+                R = per_run(values.value(self._R), B, 3, 3)
+                a_W = (R @ per_run(self._u1.Eval(context), B)[:, :, None])[:, :, 0]
                 p, v = double_integrator_step(
-                    values.value(self._p), values.value(self._v), R @ self._u1.Eval(context),
+                    per_run(values.value(self._p), B), per_run(values.value(self._v), B), a_W,
                     self._t,
                 )
-                state.set_value(self._p, p + self._t * self._current)
-                state.set_value(self._v, v)
-                state.set_value(self._R, (exp_so3(self._u2.Eval(context) * self._t) @ R).ravel())
+                u2 = per_run(self._u2.Eval(context), B)
+                state.set_value(self._p, (p + self._t * self._current).ravel())
+                state.set_value(self._v, v.ravel())
+                state.set_value(self._R, (exp_so3_runs(u2 * self._t) @ R).ravel())
         ''',
     config_file="drake_uuv/scenario/plants.py",
     config_text='''
