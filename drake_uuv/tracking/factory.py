@@ -17,8 +17,8 @@ TRACKING_CONTROLLERS: dict[type, type[LeafSystem]] = {
 
 
 def tracking_setting(scenario: Scenario) -> TrackingSetting:
-    """What a tracking law gets from ``scenario``: the period."""
-    return TrackingSetting(time_step=scenario.time_step)
+    """What a tracking law gets from ``scenario``: the period and the plant's top speed."""
+    return TrackingSetting(time_step=scenario.time_step, max_speed=scenario.plant.top_speed())
 
 
 def make_tracking_controller(scenario: Scenario, *, batch_size: int = 1) -> LeafSystem:
