@@ -260,7 +260,7 @@ def speed_limited_acceleration(
     the next velocity would be faster, it is scaled onto the sphere (direction kept) and the
     acceleration is the one that reaches it, ``(v_max (v + t a)/|v + t a| − v) / t``. Each
     vector alone (a compiled loop); unchanged where slower, and everywhere if None. A NaN
-    vector stays NaN."""
+    velocity or acceleration gives a NaN acceleration."""
     if max_speed is None:
         return a
     v = np.ascontiguousarray(v, dtype=float)
@@ -278,7 +278,7 @@ def _speed_kernel(v: np.ndarray, a: np.ndarray, t: float, max_speed: float) -> N
         w1 = v[n, 1] + t * a[n, 1]
         w2 = v[n, 2] + t * a[n, 2]
         norm = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-        if norm > max_speed:
+        if not norm <= max_speed:  # a NaN speed too: its acceleration is NaN
             scale = max_speed / norm
             a[n, 0] = (scale * w0 - v[n, 0]) / t
             a[n, 1] = (scale * w1 - v[n, 1]) / t
