@@ -40,6 +40,10 @@ class TrackingOptions:
     # Hold station (no acceleration) while the estimator is in its linear start (the law
     # then reads the raw-range filters' estimator_phase; the paper's KF has none).
     hold_until_handover: bool = False
+    # A top speed [m/s] the law keeps to (None: only the plant's, if it has one): the command
+    # is limited so that the navigated velocity stays within it (the law then reads v_WU_nav),
+    # and u1_W reports the limited acceleration. Unlike the plant's, it holds on every plant.
+    max_speed: float | None = None
 
     def validate(self, name: str) -> None:
         check_vector(f"{name}.desired_relative_position", self.desired_relative_position, 3)
@@ -51,6 +55,8 @@ class TrackingOptions:
         check_choice(f"{name}.caution_scaling", self.caution_scaling, CAUTION_SCALINGS)
         if not isinstance(self.hold_until_handover, bool):
             fail(f"{name}.hold_until_handover", "must be true or false", self.hold_until_handover)
+        if self.max_speed is not None:
+            check_positive(f"{name}.max_speed", self.max_speed)
 
     def planning_model(self) -> TrackingPlanningModel:
         """What an attitude planner assumes of this law: q* if it turns with the body, and a

@@ -10,8 +10,9 @@ it reads only when it is on:
   as 1/variance beyond σ², so a wide estimate moves the vehicle little;
 - **hold** (``hold_until_handover``, reads ``estimator_phase``): no acceleration at all while
   the raw-range filter is in its linear start;
-- **top speed** (the setting's ``max_speed``, reads ``v_WU_nav``): the command limited so
-  that the navigated velocity stays within the plant's top speed
+- **top speed** (the lower of the plant's, the setting's ``max_speed``, and the law's own
+  ``max_speed``; reads ``v_WU_nav``): the command limited so that the navigated velocity
+  stays within it
   (:func:`~drake_uuv.models.tracking_laws.speed_limited_acceleration`), so that ``u1_W``
   is the acceleration the plant applies (exactly, with perfect navigation).
 """
@@ -44,7 +45,8 @@ class CautiousLoop:
         self._time_step = setting.time_step
         self._position_std = config.caution_position_std
         self._scaling = config.caution_scaling
-        self._max_speed = setting.max_speed
+        speeds = [v for v in (setting.max_speed, config.max_speed) if v is not None]
+        self._max_speed = min(speeds) if speeds else None
         self._covariance_port = self._phase_port = self._velocity_port = None
         if self._position_std is not None:
             self._covariance_port = system.DeclareVectorInputPort("P_TU", 36 * B)

@@ -214,3 +214,14 @@ def test_a_bad_hold_is_named() -> None:
 def test_a_bad_top_speed_in_the_setting_is_named() -> None:
     with pytest.raises(ValueError, match=r"^max_speed: must be None or > 0, got -1.0$"):
         TrackingSetting(time_step=T, max_speed=-1.0)
+
+
+def test_the_law_s_own_top_speed_and_the_plant_s_the_lower_wins() -> None:
+    R = np.eye(3).ravel()
+    inputs = dict(x_TU_hat=X_HAT, R_WB_nav=R, R_WB_plan=np.r_[R, R], v_WU_nav=[0.0, 0.7, 0.0])
+    own = u1_W(lqr(max_speed=0.5), **inputs)
+    assert_allclose(np.linalg.norm(np.array([0.0, 0.7, 0.0]) + T * own), 0.5, rtol=1e-14)
+    both = lqr(TrackingSetting(time_step=T, max_speed=0.76), max_speed=0.5)
+    np.testing.assert_array_equal(u1_W(both, **inputs), own)
+    with pytest.raises(ValueError, match=r"^tracking.max_speed: must be > 0, got -0.5$"):
+        load_scenario("paper", ["tracking.max_speed=-0.5"])
