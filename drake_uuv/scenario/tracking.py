@@ -38,7 +38,8 @@ class TrackingOptions:
     caution_position_std: float | None = None
     caution_scaling: str = "trace"
     # Hold station (no acceleration) while the estimator is in its linear start (the law
-    # then reads the raw-range filters' estimator_phase; the paper's KF has none).
+    # then reads the raw-range filters' estimator_phase; the paper's KF never hands over, and
+    # with it the option holds nothing).
     hold_until_handover: bool = False
     # A top speed [m/s] the law keeps to (None: only the plant's, if it has one): the command
     # is limited so that the navigated velocity stays within it (the law then reads v_WU_nav),

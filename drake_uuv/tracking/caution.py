@@ -9,7 +9,8 @@ it reads only when it is on:
   :func:`~drake_uuv.models.tracking_laws.caution_scales`, 1 for a known position and falling
   as 1/variance beyond σ², so a wide estimate moves the vehicle little;
 - **hold** (``hold_until_handover``, reads ``estimator_phase``): no acceleration at all while
-  the raw-range filter is in its linear start;
+  the raw-range filter is in its linear start (nothing to hold for with an estimator that
+  never hands over, the paper's KF: the setting's ``estimator_hands_over``);
 - **top speed** (the lower of the plant's, the setting's ``max_speed``, and the law's own
   ``max_speed``; reads ``v_WU_nav``): the command limited so that the navigated velocity
   stays within it
@@ -50,7 +51,7 @@ class CautiousLoop:
         self._covariance_port = self._phase_port = self._velocity_port = None
         if self._position_std is not None:
             self._covariance_port = system.DeclareVectorInputPort("P_TU", 36 * B)
-        if config.hold_until_handover:
+        if config.hold_until_handover and setting.estimator_hands_over:
             self._phase_port = system.DeclareVectorInputPort("estimator_phase", 2 * B)
         if self._max_speed is not None:
             self._velocity_port = system.DeclareVectorInputPort("v_WU_nav", 3 * B)

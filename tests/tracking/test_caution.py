@@ -225,3 +225,15 @@ def test_the_law_s_own_top_speed_and_the_plant_s_the_lower_wins() -> None:
     np.testing.assert_array_equal(u1_W(both, **inputs), own)
     with pytest.raises(ValueError, match=r"^tracking.max_speed: must be > 0, got -0.5$"):
         load_scenario("paper", ["tracking.max_speed=-0.5"])
+
+
+def test_the_hold_waits_only_for_an_estimator_that_hands_over() -> None:
+    from drake_uuv.tracking import make_tracking_controller, tracking_setting
+
+    held = ["tracking.hold_until_handover=true"]
+    with_ekf = make_tracking_controller(load_scenario("paper", [*held, "estimator=Ekf"]))
+    assert with_ekf.HasInputPort("estimator_phase")
+    # The paper's KF is its own linear start throughout: nothing to wait for, no port.
+    paper_kf = load_scenario("paper", held)
+    assert not tracking_setting(paper_kf).estimator_hands_over
+    assert not make_tracking_controller(paper_kf).HasInputPort("estimator_phase")
