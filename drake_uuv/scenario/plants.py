@@ -44,11 +44,6 @@ from drake_uuv.models.marine_vehicle import MarineVehicleModel, rigid_body_mass_
 from drake_uuv.models.thrust_allocation import ThrustAllocator, allocation_matrix
 from drake_uuv.scenario.validation import ScenarioError
 
-# [m/s] The hovering UUV's top speed in its worst direction (HoloOcean's HoveringAUV
-# thrust limit against the BlueROV2 drag scaled to its mass, drake_uuv.models.vehicle_limits):
-# a kinematic stand-in for that vehicle swims no faster.
-HOVERING_AUV_TOP_SPEED = 0.76
-
 
 @dataclass
 class KinematicUuv:
@@ -58,7 +53,10 @@ class KinematicUuv:
     ``max_speed`` [m/s]: a top speed, as every vehicle has (None: none, the paper's): the
     applied acceleration is limited so that ``|v(k+1)| ≤ max_speed``. The tracking law is
     told it (:meth:`top_speed`) and limits its command the same way, so that the acceleration
-    it reports to the filter (``u1_W``) is the one the vehicle applies.
+    it reports to the filter (``u1_W``) is the one the vehicle applies. For a stand-in of the
+    hovering UUV, 0.76 m/s, its worst-direction top speed (HoloOcean's HoveringAUV thrust
+    limit against the BlueROV2 drag scaled to its mass, :mod:`drake_uuv.models.vehicle_limits`);
+    the BlueROV2 Heavy is rated at 1.5 m/s forward (Blue Robotics' specifications).
     """
 
     max_speed: float | None = None
