@@ -226,6 +226,65 @@ def _saturate_kernel(a: np.ndarray, limit: float) -> None:
                 a[n, i] *= scale
 
 
+#: How the cautious loop scales the law's feedback with the estimate's position covariance:
+#: one factor from its trace, or one per world axis from its diagonal.
+CAUTION_SCALINGS = ("trace", "axis")
+
+
+def caution_scales(P: np.ndarray, position_std: float, scaling: str) -> np.ndarray:
+    """The cautious loop's factors (B×3) on the world feedback, from the covariances ``P``
+    (B×36 or B×6×6, world frame) and a reference σ = ``position_std`` [m].
+
+    ``"trace"``: ``s = 1 / (1 + tr P_qq / σ²)`` on every axis; ``"axis"``:
+    ``s_i = 1 / (1 + P_ii / σ²)`` along world axis i. Each is 1 for a known position and
+    falls as 1/variance once the variance passes σ² (a certainty-equivalent law trusts an
+    estimate whatever its spread). A negative variance (a broken covariance) counts as 0; a
+    NaN one gives a NaN factor, for its run alone.
+    """
+    if scaling not in CAUTION_SCALINGS:
+        raise ValueError(f"scaling: must be one of {', '.join(CAUTION_SCALINGS)}, got {scaling!r}")
+    P = np.asarray(P, dtype=float).reshape(-1, 6, 6)
+    variance = np.maximum(np.diagonal(P[:, :3, :3], axis1=1, axis2=2), 0.0)  # NaN stays NaN
+    reference = float(position_std) ** 2
+    if scaling == "axis":
+        return 1.0 / (1.0 + variance / reference)
+    # The trace summed term by term: each run's own three numbers, in one order.
+    trace = variance[:, 0] + variance[:, 1] + variance[:, 2]
+    return np.repeat((1.0 / (1.0 + trace / reference))[:, np.newaxis], 3, axis=1)
+
+
+def speed_limited_acceleration(
+    v: np.ndarray, a: np.ndarray, time_step: float, max_speed: float | None
+) -> np.ndarray:
+    """``a`` (…×3) limited so that ``|v + t a| ≤ max_speed`` for velocities ``v`` (…×3): where
+    the next velocity would be faster, it is scaled onto the sphere (direction kept) and the
+    acceleration is the one that reaches it, ``(v_max (v + t a)/|v + t a| − v) / t``. Each
+    vector alone (a compiled loop); unchanged where slower, and everywhere if None. A NaN
+    velocity or acceleration gives a NaN acceleration."""
+    if max_speed is None:
+        return a
+    v = np.ascontiguousarray(v, dtype=float)
+    out = np.array(a, dtype=float)  # a copy, C-ordered
+    if v.shape != out.shape:
+        raise ValueError(f"v, a: shapes {v.shape} and {out.shape} differ")
+    _speed_kernel(v.reshape(-1, 3), out.reshape(-1, 3), float(time_step), float(max_speed))
+    return out
+
+
+@njit(cache=True)
+def _speed_kernel(v: np.ndarray, a: np.ndarray, t: float, max_speed: float) -> None:
+    for n in range(a.shape[0]):
+        w0 = v[n, 0] + t * a[n, 0]
+        w1 = v[n, 1] + t * a[n, 1]
+        w2 = v[n, 2] + t * a[n, 2]
+        norm = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        if not norm <= max_speed:  # a NaN speed too: its acceleration is NaN
+            scale = max_speed / norm
+            a[n, 0] = (scale * w0 - v[n, 0]) / t
+            a[n, 1] = (scale * w1 - v[n, 1]) / t
+            a[n, 2] = (scale * w2 - v[n, 2]) / t
+
+
 def closed_loop_eigenvalues(time_step: float, K: np.ndarray) -> np.ndarray:
     """Eigenvalues of ``A − B K`` of the relative double integrator, largest modulus first.
 

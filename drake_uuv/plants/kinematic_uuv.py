@@ -4,6 +4,7 @@ from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from drake_uuv.models.motion import double_integrator_step
 from drake_uuv.models.so3 import exp_so3_runs
+from drake_uuv.models.tracking_laws import speed_limited_acceleration
 from drake_uuv.plants.base import PlantSetting
 from drake_uuv.primitives.batch import batch_size_field, per_run, tiled
 from drake_uuv.scenario.plants import KinematicUuv
@@ -41,13 +42,17 @@ class KinematicUuvPlant(LeafSystem):
     Sizes are per run: with ``batch_size`` B every port and state holds B runs row-major
     (:mod:`drake_uuv.primitives.batch`), each run from the setting's initial state.
 
-    ``config`` (:class:`~drake_uuv.scenario.KinematicUuv`) has no parameters; the period and
-    the initial state are the ``setting``'s.
+    ``config`` (:class:`~drake_uuv.scenario.KinematicUuv`) gives the top speed ``max_speed``
+    (None: none, the paper's): the applied world acceleration is limited so that
+    ``|v(k+1)| ≤ max_speed`` (:func:`~drake_uuv.models.tracking_laws.speed_limited_acceleration`:
+    the next velocity scaled onto that sphere). The period and the initial state are the
+    ``setting``'s.
     """
 
     def __init__(self, config: KinematicUuv, *, setting: PlantSetting, batch_size: int = 1) -> None:
         super().__init__()
         self._time_step = setting.time_step
+        self._max_speed = config.top_speed()
         self.batch_size = B = batch_size_field(batch_size)
         self._u1_port = self.DeclareVectorInputPort("u1_B", 3 * B)
         self._u2_port = self.DeclareVectorInputPort("u2_W", 3 * B)
@@ -64,11 +69,11 @@ class KinematicUuvPlant(LeafSystem):
         R = per_run(state.value(self._R_index), B, 3, 3)
         u1 = per_run(self._u1_port.Eval(context), B)
         a_W = (R @ u1[:, :, None])[:, :, 0]
+        v = per_run(state.value(self._v_index), B)
+        if self._max_speed is not None:
+            a_W = speed_limited_acceleration(v, a_W, self._time_step, self._max_speed)
         p, v = double_integrator_step(
-            per_run(state.value(self._p_index), B),
-            per_run(state.value(self._v_index), B),
-            a_W,
-            self._time_step,
+            per_run(state.value(self._p_index), B), v, a_W, self._time_step
         )
         R_next = exp_so3_runs(per_run(self._u2_port.Eval(context), B) * self._time_step) @ R
         R_next = 1.5 * R_next - 0.5 * (R_next @ (R_next.transpose(0, 2, 1) @ R_next))

@@ -48,10 +48,29 @@ from drake_uuv.scenario.validation import ScenarioError
 @dataclass
 class KinematicUuv:
     """The paper's vehicle, a world-frame double integrator driven by ``R u1`` whose attitude
-    takes any commanded value in one step (its equations 1–2). No parameters."""
+    takes any commanded value in one step (its equations 1–2).
+
+    ``max_speed`` [m/s]: a top speed, as every vehicle has (None: none, the paper's): the
+    applied acceleration is limited so that ``|v(k+1)| ≤ max_speed``. The tracking law is
+    told it (:meth:`top_speed`) and limits its command the same way, so that the acceleration
+    it reports to the filter (``u1_W``) is the one the vehicle applies. For a stand-in of the
+    hovering UUV, 0.76 m/s, its worst-direction top speed (HoloOcean's HoveringAUV thrust
+    limit against the BlueROV2 drag scaled to its mass, :mod:`drake_uuv.models.vehicle_limits`);
+    the BlueROV2 Heavy is rated at 1.5 m/s forward (Blue Robotics' specifications).
+    """
+
+    max_speed: float | None = None
 
     def validate(self, name: str) -> None:
-        pass
+        if self.max_speed is not None:
+            if isinstance(self.max_speed, bool) or not isinstance(self.max_speed, int | float):
+                raise ScenarioError(f"{name}.max_speed: must be a number, got {self.max_speed!r}")
+            if not (math.isfinite(self.max_speed) and self.max_speed > 0.0):
+                raise ScenarioError(f"{name}.max_speed: must be > 0, got {self.max_speed!r}")
+
+    def top_speed(self) -> float | None:
+        """The speed the plant never exceeds, which a tracking law must respect (None: none)."""
+        return None if self.max_speed is None else float(self.max_speed)
 
 
 ATTITUDE_REFERENCES = ("trajectory", "step")
@@ -229,6 +248,10 @@ class HoveringAuv:
             self.max_thrust,
             np.asarray(self.allocation_weights, dtype=float),
         )
+
+    def top_speed(self) -> float | None:
+        """None: the vehicle's speed is its dynamics', not a limit the plant enforces."""
+        return None
 
     def validate(self, prefix: str) -> None:
         """Raises ``ScenarioError(f"{prefix}.field: requirement, got {value!r}")`` on a bad field.

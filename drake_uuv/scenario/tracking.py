@@ -14,6 +14,8 @@ from drake_uuv.scenario.validation import check_choice, check_positive, check_ve
 ALPHA_PROVEN_INTERVAL = (1.0 - 1.0 / math.sqrt(2.0), 1.0 + 1.0 / math.sqrt(2.0))
 # The frames q* may be fixed in.
 REFERENCE_FRAMES = ("body", "world", "heading")
+# How the cautious loop scales the feedback: by tr P_qq, or per world axis by P_ii.
+CAUTION_SCALINGS = ("trace", "axis")
 
 
 @dataclass
@@ -28,12 +30,34 @@ class TrackingOptions:
     reference_frame: str = "body"
     # Largest |world acceleration| [m/s²]; None means unlimited (the paper).
     max_acceleration: float | None = None
+    # The cautious loop (both off by default: the paper's certainty equivalence, which acts on
+    # the estimate as if it were the truth, even on a linear start's first guesses).
+    # caution_position_std σ [m]: the feedback falls with the estimate's position variance
+    # (the law then reads P_TU), by s = 1/(1 + tr P_qq/σ²) with caution_scaling "trace", or
+    # by s_i = 1/(1 + P_ii/σ²) along each world axis with "axis". None: no scaling.
+    caution_position_std: float | None = None
+    caution_scaling: str = "trace"
+    # Hold station (no acceleration) while the estimator is in its linear start (the law
+    # then reads the raw-range filters' estimator_phase; the paper's KF never hands over, and
+    # with it the option holds nothing).
+    hold_until_handover: bool = False
+    # A top speed [m/s] the law keeps to (None: only the plant's, if it has one): the command
+    # is limited so that the navigated velocity stays within it (the law then reads v_WU_nav),
+    # and u1_W reports the limited acceleration. Unlike the plant's, it holds on every plant.
+    max_speed: float | None = None
 
     def validate(self, name: str) -> None:
         check_vector(f"{name}.desired_relative_position", self.desired_relative_position, 3)
         check_choice(f"{name}.reference_frame", self.reference_frame, REFERENCE_FRAMES)
         if self.max_acceleration is not None:
             check_positive(f"{name}.max_acceleration", self.max_acceleration)
+        if self.caution_position_std is not None:
+            check_positive(f"{name}.caution_position_std", self.caution_position_std)
+        check_choice(f"{name}.caution_scaling", self.caution_scaling, CAUTION_SCALINGS)
+        if not isinstance(self.hold_until_handover, bool):
+            fail(f"{name}.hold_until_handover", "must be true or false", self.hold_until_handover)
+        if self.max_speed is not None:
+            check_positive(f"{name}.max_speed", self.max_speed)
 
     def planning_model(self) -> TrackingPlanningModel:
         """What an attitude planner assumes of this law: q* if it turns with the body, and a

@@ -2,6 +2,7 @@
 
 from pydrake.systems.framework import LeafSystem
 
+from drake_uuv.models.information import PlannedMeasurement
 from drake_uuv.primitives.variant_table import variant_system
 from drake_uuv.scenario import LqrTracking, PaperTracking, Scenario
 from drake_uuv.tracking.base import TrackingSetting
@@ -17,8 +18,14 @@ TRACKING_CONTROLLERS: dict[type, type[LeafSystem]] = {
 
 
 def tracking_setting(scenario: Scenario) -> TrackingSetting:
-    """What a tracking law gets from ``scenario``: the period."""
-    return TrackingSetting(time_step=scenario.time_step)
+    """What a tracking law gets from ``scenario``: the period, the plant's top speed and
+    whether the estimator hands over from a linear start (a raw-range filter's)."""
+    measurement = scenario.estimator.planning_model().measurement
+    return TrackingSetting(
+        time_step=scenario.time_step,
+        max_speed=scenario.plant.top_speed(),
+        estimator_hands_over=measurement == PlannedMeasurement.RANGES,
+    )
 
 
 def make_tracking_controller(scenario: Scenario, *, batch_size: int = 1) -> LeafSystem:

@@ -41,6 +41,13 @@ gain acts on the current estimated error and the feed-forward is recomputed from
 plan each step, with no integrator or filter state, so there is nothing to wind up while
 saturated and the law resumes exactly where the unsaturated law would be once the command
 falls below the limit.
+
+Caution
+-------
+The cautious loop's options (:mod:`drake_uuv.tracking.caution`) act on the feedback
+``K (Υ̂ − [r; ν])`` only (scaled by the estimate's covariance: the feed-forward is the
+plan's, known), and on the limited command (held until the hand-over, within the plant's top
+speed); each adds the port it reads (``P_TU``, ``estimator_phase``, ``v_WU_nav``) only when on.
 """
 
 import numpy as np
@@ -57,6 +64,7 @@ from drake_uuv.models.tracking_laws import (
 from drake_uuv.primitives.batch import batch_size_field, per_run
 from drake_uuv.scenario.tracking import LqrTracking
 from drake_uuv.tracking.base import TrackingSetting
+from drake_uuv.tracking.caution import CautiousLoop
 
 
 class LqrTrackingController(LeafSystem):
@@ -116,6 +124,7 @@ class LqrTrackingController(LeafSystem):
         self._plan_port = self.DeclareVectorInputPort("R_WB_plan", 18 * B)
         self.DeclareVectorOutputPort("u1_B", 3 * B, self._calc_u1)
         self._u1_W_port = self.DeclareVectorOutputPort("u1_W", 3 * B, self._calc_u1_W)
+        self._caution = CautiousLoop(self, config, setting=setting, batch_size=B)
 
     @property
     def gain(self) -> np.ndarray:
@@ -136,12 +145,16 @@ class LqrTrackingController(LeafSystem):
         return reference_feedforward(r0, r[:, 0], r[:, 1], self._time_step)
 
     def acceleration(self, context: Context) -> np.ndarray:
-        """The applied world acceleration ``a(k)`` (B×3), after the limit."""
+        """The applied world acceleration ``a(k)`` (B×3), after the limit (and the cautious
+        loop's scaling, hold and top speed, :mod:`~drake_uuv.tracking.caution`, when on)."""
         x_reference, a_ff = self.reference(context)
         error = per_run(self._x_hat_port.Eval(context), self.batch_size) - x_reference
         # K applied run by run (a stacked product), never one product over the batch.
-        a = a_ff - (self._K @ error[:, :, np.newaxis])[:, :, 0]
-        return saturate_norm(a, self._max_acceleration)
+        feedback = (self._K @ error[:, :, np.newaxis])[:, :, 0]
+        if self._caution.scales:
+            feedback = self._caution.scale_factors(context) * feedback
+        a = saturate_norm(a_ff - feedback, self._max_acceleration)
+        return self._caution.limited(context, a) if self._caution.limits else a
 
     def _calc_u1(self, context: Context, output: BasicVector) -> None:
         B = self.batch_size

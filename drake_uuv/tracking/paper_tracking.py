@@ -15,6 +15,7 @@ from drake_uuv.models.tracking_laws import (
 from drake_uuv.primitives.batch import batch_size_field, per_run
 from drake_uuv.scenario.tracking import PaperTracking
 from drake_uuv.tracking.base import TrackingSetting
+from drake_uuv.tracking.caution import CautiousLoop
 
 
 class PaperTrackingController(LeafSystem):
@@ -44,7 +45,10 @@ class PaperTrackingController(LeafSystem):
     ``q*`` is fixed in ``reference_frame``: the body (the paper's), the world, or the body's
     heading (:func:`~drake_uuv.models.tracking_laws.reference_rotation`); the law then uses
     ``Rᵀ R_WF q*`` in place of q*. With ``max_acceleration`` the command is scaled down to that
-    norm (direction kept); the law is static, so there is nothing to wind up.
+    norm (direction kept); the law is static, so there is nothing to wind up. The cautious
+    loop's options (:mod:`~drake_uuv.tracking.caution`: the command scaled by the covariance,
+    held until the hand-over, within the plant's top speed) add the ports they read,
+    ``P_TU``, ``estimator_phase``, ``v_WU_nav``, only when on.
 
     Sizes are per run: with ``batch_size`` B every port holds B runs row-major
     (:mod:`drake_uuv.primitives.batch`); each run is limited alone (a mask, not a branch), and
@@ -70,6 +74,7 @@ class PaperTrackingController(LeafSystem):
         self._attitude_port = self.DeclareVectorInputPort("R_WB_nav", 9 * B)
         self._u1_port = self.DeclareVectorOutputPort("u1_B", 3 * B, self._calc_u1)
         self.DeclareVectorOutputPort("u1_W", 3 * B, self._calc_u1_W)
+        self._caution = CautiousLoop(self, config, setting=setting, batch_size=B)
 
     @property
     def gain(self) -> np.ndarray:
@@ -86,7 +91,13 @@ class PaperTrackingController(LeafSystem):
         u1 = paper_tracking_command(
             per_run(self._x_hat_port.Eval(context), B), R_WB, q_star_B, self._k_p, self._k_v
         )
-        return saturate_norm(u1, self._max_acceleration)
+        # The cautious loop works on world axes (P_TU's); off, the paper's numbers untouched.
+        if self._caution.scales:
+            u1 = rotate_back(R_WB, self._caution.scale_factors(context) * rotate(R_WB, u1))
+        u1 = saturate_norm(u1, self._max_acceleration)
+        if self._caution.limits:
+            u1 = rotate_back(R_WB, self._caution.limited(context, rotate(R_WB, u1)))
+        return u1
 
     def _calc_u1(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._u1(context).ravel())

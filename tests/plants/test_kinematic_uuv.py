@@ -136,3 +136,72 @@ def test_a_batch_step_is_each_run_alone(batch_size: int) -> None:
 def test_a_bad_batch_size_is_named() -> None:
     with pytest.raises(ValueError, match=r"batch_size: must be an integer ≥ 1, got 0"):
         KinematicUuvPlant(KinematicUuv(), setting=plant_setting(Scenario()), batch_size=0)
+
+
+# ------------------------------------------------------------------------- the top speed
+
+
+def limited_plant(max_speed: float | None, batch_size: int = 1) -> KinematicUuvPlant:
+    setting = PlantSetting(T, np.zeros(3), np.array([0.5, 0.0, 0.0]), np.eye(3))
+    return KinematicUuvPlant(
+        KinematicUuv(max_speed=max_speed), setting=setting, batch_size=batch_size
+    )
+
+
+def test_a_step_beyond_the_top_speed_reaches_it_in_the_asked_direction() -> None:
+    # v = [0.5, 0, 0], a = [1, 0.8, 0] asks v + t a = [1, 0.4, 0] (|·| = 1.077); at 0.76 the
+    # next velocity is that scaled onto the sphere, and p moves with the acceleration that
+    # reaches it, a' = (v(k+1) − v)/t.
+    plant = limited_plant(0.76)
+    context = fixed_context(plant, u1_B=[1.0, 0.8, 0.0], u2_W=np.zeros(3))
+    v0, asked = np.array([0.5, 0.0, 0.0]), np.array([1.0, 0.4, 0.0])
+    v1 = 0.76 * asked / np.linalg.norm(asked)
+    a = (v1 - v0) / T
+    assert_allclose(discrete_update(plant, context, group=1), v1, rtol=1e-14)
+    assert_allclose(discrete_update(plant, context, group=0), T * v0 + 0.5 * T**2 * a, atol=1e-15)
+    assert np.linalg.norm(discrete_update(plant, context, group=1)) <= 0.76 * (1 + 1e-15)
+
+
+def test_below_the_top_speed_the_step_is_the_paper_s_to_the_bit() -> None:
+    u1 = {"u1_B": [0.3, -0.2, 0.1], "u2_W": [0.1, 0.2, 0.3]}  # |v(k+1)| = 0.67 < 0.76
+    limited, free = limited_plant(0.76), limited_plant(None)
+    for group in range(3):
+        np.testing.assert_array_equal(
+            discrete_update(limited, fixed_context(limited, **u1), group=group),
+            discrete_update(free, fixed_context(free, **u1), group=group),
+        )
+
+
+@pytest.mark.parametrize("batch_size", [1, 2, 6])
+def test_a_limited_batch_step_is_each_run_alone(batch_size: int) -> None:
+    """Runs below, at and beyond the top speed, and a NaN command, in one batch."""
+    rng = np.random.default_rng(20 + batch_size)
+    R = np.array(
+        [RotationMatrix(RollPitchYaw(rng.normal(size=3))).matrix() for _ in range(batch_size)]
+    )
+    velocities = rng.normal(scale=0.5, size=(batch_size, 3))
+    states = [rng.normal(size=(batch_size, 3)), velocities, R.reshape(batch_size, 9)]
+    u1 = rng.normal(size=(batch_size, 3)) * np.where(np.arange(batch_size) % 2, 0.01, 3.0)[:, None]
+    if batch_size > 4:
+        u1[-1, 1] = np.nan
+    inputs = {"u1_B": u1, "u2_W": rng.normal(size=(batch_size, 3))}
+    setting = plant_setting(Scenario())
+
+    def make(B: int) -> KinematicUuvPlant:
+        return KinematicUuvPlant(KinematicUuv(max_speed=0.76), setting=setting, batch_size=B)
+
+    assert_batch_equals_runs(make, inputs, states)
+
+
+@pytest.mark.parametrize("value", ["0", "-1.5", "nan", "true"])
+def test_a_bad_top_speed_is_named(value: str) -> None:
+    with pytest.raises(ValueError, match=r"^plant.max_speed: must be .*, got"):
+        load_scenario("paper", [f"plant.max_speed={value}"])
+
+
+def test_the_tracking_law_is_told_the_top_speed() -> None:
+    from drake_uuv.tracking import tracking_setting
+
+    assert tracking_setting(load_scenario("paper")).max_speed is None
+    assert tracking_setting(load_scenario("paper", ["plant.max_speed=0.76"])).max_speed == 0.76
+    assert tracking_setting(load_scenario("hovering_auv")).max_speed is None

@@ -83,7 +83,7 @@ def _names(slot: str) -> str:
         ("tracking=!LqrTracking [1, 2]", r"^tracking: LqrTracking takes a mapping of fields, got \[1, 2\]$"),
         ("tracking=LqrTracking [1, 2]", r"^tracking: LqrTracking takes a mapping of fields, got \[1, 2\]$"),
         ("tracking=LqrTracking {max_acceleration: [1}", r"^tracking: value is not valid YAML"),
-        ("tracking.type=lqr", rf"^tracking.type: unknown field 'type' in 'tracking' \(fields of PaperTracking: desired_relative_position, reference_frame, max_acceleration, alpha, allow_unproven_alpha\); to change the variant, --set tracking=Name \({_names('tracking')}\)$"),
+        ("tracking.type=lqr", rf"^tracking.type: unknown field 'type' in 'tracking' \(fields of PaperTracking: desired_relative_position, reference_frame, max_acceleration, caution_position_std, caution_scaling, hold_until_handover, max_speed, alpha, allow_unproven_alpha\); to change the variant, --set tracking=Name \({_names('tracking')}\)$"),
         ("attitude.mode=fixed", rf"^attitude.mode: unknown field 'mode' in 'attitude'.*--set attitude=Name \({_names('attitude')}\)$"),
         ("estimator.type=ekf", rf"^estimator.type: unknown field 'type' in 'estimator'.*--set estimator=Name \({_names('estimator')}\)$"),
         ("sonar.baseline=!Foo [1, 2, 3]", r"^sonar.baseline: takes no !tag, got !Foo"),
