@@ -80,13 +80,25 @@ def log_from_loggers(built: UuvDiagram, context: Context, steps: int) -> dict[st
     for name, logger in built.loggers.items():
         found = logger.FindLog(context)
         if "time" not in log:
-            log["time"] = found.sample_times()[:steps].copy()
+            log["time"] = _padded_times(found.sample_times()[:steps], steps)
         signal = built.signals[name]
         data = found.data().T[:steps]
+        if len(data) < steps:  # every run failed and the Simulator stopped: NaN after it
+            data = np.vstack([data, np.full((steps - len(data), data.shape[1]), np.nan)])
         shape = signal.shape if all(n > 0 for n in signal.shape) else (-1,)
         data = np.moveaxis(data.reshape(len(data), B, *shape), 1, 0).copy()
         log[name] = data.astype(np.int8) if signal.integer else data
     return log
+
+
+def _padded_times(times: np.ndarray, steps: int) -> np.ndarray:
+    """The loggers' sample times, continued at their period to ``steps`` when a batch whose
+    runs all failed stopped early."""
+    times = np.array(times, dtype=float)
+    if len(times) >= steps or len(times) < 2:
+        return np.pad(times, (0, max(steps - len(times), 0)), constant_values=np.nan)
+    more = times[-1] + (times[1] - times[0]) * np.arange(1, steps - len(times) + 1)
+    return np.concatenate([times, more])
 
 
 def read_log(path: Path) -> dict[str, np.ndarray]:

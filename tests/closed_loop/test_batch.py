@@ -83,3 +83,20 @@ def test_a_batch_takes_one_seed_per_run() -> None:
         ValueError, match=r"run: this simulation steps 2 runs at once; use run_batch"
     ):
         simulation.run(1)
+
+
+def test_a_batch_whose_runs_all_fail_is_reported_with_full_length_logs() -> None:
+    """Every run stopped at step 0: the Simulator stops, the log is NaN to its full length,
+    every metric NaN and each run's failure named."""
+    scenario = load_scenario("paper", SHORT)
+    simulation = ClosedLoopSimulation(scenario, batch_size=2)
+    estimator = simulation.built.systems["estimator"]
+
+    def spoil_all(root):
+        context = estimator.GetMyMutableContextFromRoot(root)
+        context.SetDiscreteState(0, np.full(12, np.nan))
+
+    batch = simulation.run_batch([1, 2], prepare=spoil_all)
+    assert all(f.startswith("estimator output is not finite") for f in batch.failures)
+    assert batch.log["p_WU"].shape == (2, 60, 3) and len(batch.log["time"]) == 60
+    assert np.isnan(batch.metrics["position_rmse"]).all()
