@@ -1,13 +1,65 @@
 """The particle cloud a raw-range filter carries where a Gaussian cannot describe the posterior.
 
 A component of :class:`~drake_uuv.estimators.range_filter.RangeFilter`: it declares its own
-discrete state, random input and cache entry on the filter that owns it, and its steps are
-:mod:`drake_uuv.models.particle_filter`'s regularised particle filter.
+discrete state, random input and cache entry on the filter that owns it (its *host*), and
+steps the clouds of a batch of B runs, N particles each, with the compiled kernels of
+:mod:`drake_uuv.models.particle_kernels` (the regularised particle filter of
+:mod:`drake_uuv.models.particle_filter`, fused into a few passes over each run's cloud).
+
+The batched API (what the host calls; B runs, N particles)
+----------------------------------------------------------
+``ParticleCloud(host, parameters, range_covariance, *, batch_size=B)`` declares on the host:
+
+- discrete state: the particles, ``B·N·6`` (run-major, then particle, then ``[q, ϑ]``: a
+  ``(B, N, 6)`` array), in the host's stored frame; their log weights ``B·N``; ``live``
+  ``B`` (1 where the run's cloud holds a particle phase's particles: only those are weighed);
+- random input ``particle_seed``, ``B`` uniforms: run i's value, from run i's own stream,
+  keys all of run i's draws of the step (:func:`~drake_uuv.models.particle_kernels.cloud_keys`),
+  so run i's particles are a function of its seed alone, whatever B and its place;
+- the cache entry ``particle posterior``.
+
+Each step the host calls:
+
+- :meth:`ParticleCloud.posterior` ``(context) -> (x, P, nis, log_weights)``: ``(B, 6)``,
+  ``(B, 6, 6)``, ``(B,)``, ``(B, N)``: each live run's cloud reweighted by its step's ranges
+  (relative frame; NIS NaN without a range; NaN rows for a run not live). Deterministic, no
+  random input: the filtered output may depend on it.
+- :meth:`ParticleCloud.advance` ``(context, filtered, discrete_state, draw=None,
+  weigh_draw=False, *, drawn=None, runs=None, write_prediction=True) -> (x, P)`` in the
+  periodic update: ``runs`` (``(B,)`` bool, default all) the runs whose cloud moves (the runs
+  in the particle phase next step; the others are marked not live, their particles kept);
+  ``filtered.status`` (``(B,)`` or one value) VALID where the posterior's weights replace the
+  predicted ones; ``draw = (x, P)`` (``(B, 6)``, ``(B, 6, 6)``, relative frame) the Gaussian
+  a run entering the particles draws its cloud from, for the runs of ``drawn`` (``(B,)``,
+  default every run of ``runs``), weighed by its step's ranges where ``weigh_draw`` (``(B,)``
+  or one bool). Returns the predicted clouds' mean and covariance, ``(B, 6)``, ``(B, 6, 6)``,
+  stored frame, NaN for the runs not moving; with ``write_prediction`` it also writes them
+  as the host's prediction (all runs: pass False and merge by ``runs`` when some runs are not
+  in the particle phase).
+
+Accessors: :meth:`~ParticleCloud.particles` ``(B, N, 6)`` relative,
+:meth:`~ParticleCloud.log_weights` ``(B, N)``, :meth:`~ParticleCloud.set_particles`,
+:meth:`~ParticleCloud.live`. Memory: :func:`bytes_per_run` is what a batch holds per run
+(the state twice, the context's and the update's, and the posterior's log weights), so a
+study can size its batches: at N = 5000, 0.6 MB a run; at N = 20 000, 2.4 MB (B = 100:
+240 MB).
+
+What the cloud reads of its host: ``model`` (A, B, W), ``window``, ``error_model``,
+``depends_on_measurement()``, ``ranges(context)`` (``z``, ``valid``, ``q_s``, ``exact``,
+``covariance(R, x)``), ``prior(context).x``, ``vehicle_motion`` (``state_ports``,
+``offset``, ``acceleration``), ``navigation_process_noise(context)`` and
+``write_prediction``; each value with a leading run axis, or one run's value, which a batch of
+one reads as such (:meth:`ParticleCloud._measurement`).
+
+Late ranges (the host's ping window) are stepped by numpy on one run's cloud (6×N views of
+the state) with a ``numpy.random.Generator`` seeded by the run's uniform: a cloud with a
+window takes ``batch_size`` 1 only.
 """
 
 import functools
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common import RandomDistribution
@@ -23,15 +75,20 @@ from drake_uuv.models.particle_filter import (
     ParticleFilterParameters,
     Workspace,
     defensive_draw,
-    initial_particles,
     normalised,
-    pf_predict,
     range_terms,
     resample_regularised,
     weigh,
     weighted_moments,
 )
+from drake_uuv.models.particle_kernels import (
+    cloud_advance,
+    cloud_keys,
+    cloud_posterior,
+    psd_factors,
+)
 from drake_uuv.models.timing import transition
+from drake_uuv.primitives.batch import batch_size_field
 from drake_uuv.primitives.random_input import declare_random_input
 
 # The uniform draw of the random port becomes a generator seed with this many bits (a double
@@ -50,14 +107,24 @@ _HANDOVER_WIDENING = 2.0
 _blas: list | None = None
 
 
+def bytes_per_run(count: int, window: int = 0, navigation_noise: bool = False) -> int:
+    """The bytes a batch holds per run for a cloud of ``count`` particles: its discrete state
+    (particles, log weights, live flag; with late ranges each window step's accelerations and,
+    with ``navigation_noise``, navigation noise) twice, the context's and the periodic
+    update's, and the posterior's log weights (the cache). The kernels' work arrays (about
+    12 N doubles) are the batch's, not per run."""
+    state = count * (STATE_SIZE + 1) + 1 + window * count * (3 + (6 if navigation_noise else 0))
+    return 8 * (2 * state + count)
+
+
 def _on_one_blas_thread(method: Callable) -> Callable:
-    """Runs ``method`` with BLAS on one thread. The cloud's products (6×N by N, 6×6 by 6×N,
-    N by N) are split over threads by OpenBLAS from about 10⁴ elements on, and waking the
-    threads costs more than the product, the more so on a busy machine: the realistic run
-    (20 000 particles) took 13 s of CPU with the default threads against 3 s with one. A
-    study's runner already holds one thread per worker; this covers a run of its own. The
-    BLAS libraries are found once and their thread counts read and set directly (about 3 µs
-    a call, where ``ThreadpoolController.limit`` inspects every library each time, 20 µs)."""
+    """Runs ``method`` with BLAS on one thread (the late-range steps' numpy products). The
+    cloud's products (6×N by N, 6×6 by 6×N, N by N) are split over threads by OpenBLAS from
+    about 10⁴ elements on, and waking the threads costs more than the product, the more so on
+    a busy machine: the realistic run (20 000 particles) took 13 s of CPU with the default
+    threads against 3 s with one. The BLAS libraries are found once and their thread counts
+    read and set directly (about 3 µs a call, where ``ThreadpoolController.limit`` inspects
+    every library each time, 20 µs)."""
 
     @functools.wraps(method)
     def on_one_thread(*args, **kwargs):
@@ -76,23 +143,49 @@ def _on_one_blas_thread(method: Callable) -> Callable:
     return on_one_thread
 
 
-class ParticleCloud:
-    """N weighted particles of the relative state, declared on ``host``.
+@dataclass(frozen=True)
+class CloudMeasurement:
+    """A step's ranges as the kernels read them, each with a leading run axis: the per-sonar
+    means ``z`` (B×2), which sonars returned ``used`` (B×2), the world baseline ``q_s`` (B×3),
+    the ranges' covariance ``R`` (B×2×2, with the error model's at the prior), the stored
+    frame's ``offset`` (B×6)."""
 
-    The filtered estimate of a particle step is the weighted mean and covariance of the
+    z: np.ndarray
+    used: np.ndarray
+    q_s: np.ndarray
+    R: np.ndarray
+    offset: np.ndarray
+
+
+def _runs(value: object, batch_size: int, *shape: int) -> np.ndarray:
+    """A host's value as a new ``(B, *shape)`` array of doubles: a batch's, or one value for
+    every run (the kernels take contiguous arrays of one kind, so each compiles once)."""
+    array = np.asarray(value, dtype=float).reshape(-1, *shape)
+    return np.broadcast_to(array, (batch_size, *shape)).copy()
+
+
+def _mask(value: object, batch_size: int) -> np.ndarray:
+    """A per-run flag (or one flag for every run) as a new ``(B,)`` bool array."""
+    return np.broadcast_to(np.asarray(value, dtype=bool).reshape(-1), (batch_size,)).copy()
+
+
+class ParticleCloud:
+    """N weighted particles of the relative state for each of B runs, declared on ``host``.
+
+    The filtered estimate of a particle step is each run's weighted mean and covariance of the
     predicted particles reweighted by the ranges' likelihood (:meth:`posterior`, a cache entry,
     deterministic in the inputs and the state); :meth:`advance`, called from the host's
-    periodic update, resamples, regularises and moves each particle by the model with its
-    own target acceleration, and writes the predicted cloud's mean and covariance as the
-    host's prediction. Randomness enters only through the host's random input port
-    ``particle_seed`` (one uniform draw per step, read only in the periodic update, where it
-    seeds that update's ``numpy.random.Generator``), so a run is reproducible from the
-    diagram's seed.
+    periodic update, resamples (systematic, when the effective sample size falls below the
+    threshold), regularises and moves each particle by the model with its own target
+    acceleration, and gives the predicted clouds' means and covariances. Randomness enters
+    only through the host's random input port ``particle_seed`` (one uniform per run and step,
+    read only in the periodic update), which keys the run's counter-based draws: a run is
+    reproducible from its seed, alone or in any batch. See the module notes for the API.
 
-    State on the host: the predicted particles (6N, state-major: the N values of ``q_x``, then
-    of ``q_y``, …) and their log weights (N). In the host's stored frame (see
-    :mod:`~drake_uuv.estimators.vehicle_motion`): with ``vehicle_motion: navigation`` the
-    particles are the target's, negated.
+    State on the host (per run): the predicted particles (N×6, particle-major) and their log
+    weights (N), in the host's stored frame (see :mod:`~drake_uuv.estimators.vehicle_motion`:
+    with ``vehicle_motion: navigation`` the particles are the target's, negated), and the
+    run's ``live`` flag.
     """
 
     def __init__(
@@ -100,19 +193,30 @@ class ParticleCloud:
         host: RelativeStateEstimator,
         parameters: ParticleFilterParameters,
         range_covariance: np.ndarray,
+        *,
+        batch_size: int = 1,
     ) -> None:
         if not isinstance(parameters, ParticleFilterParameters):
             raise ValueError(f"parameters: must be ParticleFilterParameters, got {parameters!r}")
+        self.batch_size = B = batch_size_field(batch_size)
         self._host = host
+        # A host that does not step batches yet reads one run's values (shapes only).
+        self._one_run_host = getattr(host, "batch_size", None) is None
         self._parameters = parameters
-        self._R = range_covariance
+        self._R = np.asarray(range_covariance, dtype=float)
+        self._R_runs = np.ascontiguousarray(np.broadcast_to(self._R, (B, 2, 2)))
         n = parameters.count
-        self._particles_index = host.DeclareDiscreteState(np.zeros(STATE_SIZE * n))
-        self._log_weights_index = host.DeclareDiscreteState(np.full(n, -math.log(n)))
+        self._particles_index = host.DeclareDiscreteState(np.zeros(B * n * STATE_SIZE))
+        self._log_weights_index = host.DeclareDiscreteState(np.full(B * n, -math.log(n)))
+        self._live_index = host.DeclareDiscreteState(np.zeros(B))
         self._seed_port = declare_random_input(
-            host, "particle_seed", 1, RandomDistribution.kUniform
+            host, "particle_seed", 1, RandomDistribution.kUniform, batch_size=B
         )
         self._window = host.window
+        if self._window is not None and B != 1:
+            raise ValueError(
+                f"batch_size: a particle cloud with late ranges steps one run, got {B}"
+            )
         if self._window is not None:  # each particle's target acceleration over each step
             D = self._window.schedule.window
             self._accelerations_index = host.DeclareDiscreteState(np.zeros(D * 3 * n))
@@ -122,18 +226,22 @@ class ParticleCloud:
         if self._window is not None and host.error_model.active:
             D = self._window.schedule.window
             self._jitter_index = host.DeclareDiscreteState(np.zeros(D * 6 * n))
-        # The steps' work arrays (0-3), the relative particles (4) and, with late ranges, the
-        # particles of the window's steps (4 and 5 in turn).
-        self._work = Workspace(n, arrays=5 if self._window is None else 6)
-        self._W_factor = np.linalg.cholesky(np.asarray(host.model[2], dtype=float))
+        if self._window is not None:
+            # The late-range steps' work arrays (0-3) and the particles of the window's
+            # steps (4 and 5 in turn).
+            self._work = Workspace(n, arrays=6)
+        A, Bu, W = host.model
+        self._A = np.ascontiguousarray(A, dtype=float)
+        self._Bu = np.ascontiguousarray(Bu, dtype=float)
+        self._W_factor = np.linalg.cholesky(np.asarray(W, dtype=float))
         # The posterior, shared by the filtered output and the periodic update: (x, P, nis,
-        # log weights, their weights or None, and with late ranges the first step's
-        # (log weights, acceleration) once the window is full, else None).
+        # log weights, and with late ranges the first step's (log weights, acceleration)
+        # once the window is full, else None).
         self._posterior = host.DeclareCacheEntry(
             "particle posterior",
             ValueProducer(
                 allocate=AbstractValue.Make(
-                    (np.zeros(6), np.eye(6), math.nan, np.zeros(n), None, None)
+                    (np.zeros((B, 6)), np.zeros((B, 6, 6)), np.zeros(B), np.zeros((B, n)), None)
                 ).Clone,
                 calc=self._calc_posterior,
             ),
@@ -144,58 +252,144 @@ class ParticleCloud:
     def parameters(self) -> ParticleFilterParameters:
         return self._parameters
 
-    def particles(self, context: Context) -> np.ndarray:
-        """The predicted particles of this step as a 6×N array of relative states ``Υ``."""
-        return self._relative(context, None)
+    # ------------------------------------------------------------------------ the state
 
-    def _relative(self, context: Context, out: np.ndarray | None) -> np.ndarray:
-        """:meth:`particles`, in ``out`` when the stored frame is not the relative one."""
-        particles = self._stored(context)
-        motion = self._host.vehicle_motion
-        if motion.state_ports:  # stored less the vehicle's state: add X of the step
-            return np.add(particles, motion.offset(context)[:, np.newaxis], out=out)
-        return particles
-
-    def _stored(self, context: Context) -> np.ndarray:
-        """The predicted particles as stored (6×N, a view of the state)."""
+    def _stored_runs(self, context: Context) -> np.ndarray:
+        """The predicted particles as stored, ``(B, N, 6)`` (a read-only view of the state)."""
         value = context.get_discrete_state(self._particles_index).get_value()
-        return value.reshape(STATE_SIZE, self._parameters.count)
+        return value.reshape(self.batch_size, self._parameters.count, STATE_SIZE)
+
+    def _log_weights_runs(self, context: Context) -> np.ndarray:
+        value = context.get_discrete_state(self._log_weights_index).get_value()
+        return value.reshape(self.batch_size, self._parameters.count)
+
+    def particles(self, context: Context) -> np.ndarray:
+        """The predicted particles of this step, ``(B, N, 6)`` relative states ``Υ``."""
+        offset = _runs(self._host.vehicle_motion.offset(context), self.batch_size, STATE_SIZE)
+        return self._stored_runs(context) + offset[:, np.newaxis, :]
+
+    def log_weights(self, context: Context) -> np.ndarray:
+        """The predicted particles' log weights, ``(B, N)``."""
+        return self._log_weights_runs(context)
+
+    def live(self, context: Context) -> np.ndarray:
+        """Which runs' clouds hold a particle phase's particles, ``(B,)`` bool."""
+        return context.get_discrete_state(self._live_index).get_value() != 0.0
 
     def set_particles(
         self, context: Context, particles: np.ndarray, log_weights: np.ndarray
     ) -> None:
-        """Sets this step's predicted particles (6×N relative states) and log weights."""
-        particles = np.asarray(particles, dtype=float)
-        motion = self._host.vehicle_motion
-        if motion.state_ports:
-            particles = particles - motion.offset(context)[:, np.newaxis]
-        context.SetDiscreteState(self._particles_index, particles.ravel())
-        context.SetDiscreteState(self._log_weights_index, np.asarray(log_weights, dtype=float))
+        """Sets this step's predicted particles (relative states, ``(B, N, 6)``; one run's
+        ``(N, 6)`` for a batch of one) and log weights (``(B, N)`` or ``(N,)``); the runs
+        become live."""
+        B, n = self.batch_size, self._parameters.count
+        particles = np.asarray(particles, dtype=float).reshape(B, n, STATE_SIZE)
+        offset = _runs(self._host.vehicle_motion.offset(context), B, STATE_SIZE)
+        context.SetDiscreteState(self._particles_index, (particles - offset[:, None, :]).ravel())
+        context.SetDiscreteState(
+            self._log_weights_index, np.asarray(log_weights, dtype=float).reshape(B * n)
+        )
+        context.SetDiscreteState(self._live_index, np.ones(B))
 
-    def log_weights(self, context: Context) -> np.ndarray:
-        """The predicted particles' log weights (N)."""
-        return context.get_discrete_state(self._log_weights_index).get_value()
+    # ------------------------------------------------------------------------ each step
 
-    def posterior(self, context: Context) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
-        """``(x, P, nis, log_weights)`` of this step's ranges (:func:`pf_update`; with late
-        ranges, of the window's and this tick's ranges)."""
-        return self._posterior.Eval(context)[:4]
+    def _measurement(self, context: Context, R: np.ndarray | None = None) -> CloudMeasurement:
+        """This step's ranges, per run (``R``: the ranges' covariance for every run; default
+        the sonars' plus the error model's at the prior)."""
+        host, B = self._host, self.batch_size
+        ranges = host.ranges(context)
+        if R is None:
+            R = self._R_runs
+            if not ranges.exact:
+                R = _runs(ranges.covariance(self._R, host.prior(context).x), B, 2, 2)
+        valid = np.asarray(ranges.valid, dtype=bool).reshape(B, 2).copy()
+        return CloudMeasurement(
+            z=_runs(ranges.z, B, 2),
+            used=valid,
+            q_s=_runs(ranges.q_s, B, 3),
+            R=R,
+            offset=_runs(host.vehicle_motion.offset(context), B, STATE_SIZE),
+        )
 
-    @_on_one_blas_thread
+    def posterior(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(x, P, nis, log_weights)`` of this step's ranges, each run's (see the module
+        notes; with late ranges, of the window's and this tick's ranges)."""
+        x, P, nis, log_weights, _ = self._posterior.Eval(context)
+        if self._one_run_host:
+            return x[0], P[0], float(nis[0]), log_weights[0]
+        return x, P, nis, log_weights
+
     def _calc_posterior(self, context: Context, value: AbstractValue) -> None:
         if self._window is not None:
-            value.set_value(self._window_posterior(context))
+            x, P, nis, log_weights, first = self._window_posterior(context)
+            value.set_value((x[None], P[None], np.array([nis]), log_weights[None], first))
             return
+        B, n = self.batch_size, self._parameters.count
+        m = self._measurement(context)
+        x, P, nis = np.empty((B, 6)), np.empty((B, 6, 6)), np.empty(B)
+        log_posterior = np.empty((B, n))
+        cloud_posterior(
+            self._stored_runs(context), self._log_weights_runs(context), m.offset, m.z, m.used,
+            m.q_s, m.R, self.live(context), x, P, nis, log_posterior,
+        )  # fmt: skip
+        value.set_value((x, P, nis, log_posterior, None))
 
-        ranges = self._host.ranges(context)
-        particles = self._relative(context, self._work[4])
-        R = self._R if ranges.exact else ranges.covariance(self._R, self._host.prior(context).x)
-        # pf_update, keeping the weights for the periodic update's resampling.
-        terms = range_terms(particles, ranges.z, ranges.q_s, R, ranges.sonars, self._work)
-        nis, log_weights = weigh(self.log_weights(context), *terms, self._work)
-        weights = np.exp(log_weights)
-        x, P = weighted_moments(particles, weights, self._work)
-        value.set_value((x, P, nis, log_weights, weights, None))
+    def advance(
+        self,
+        context: Context,
+        filtered: FilteredEstimate,
+        discrete_state: DiscreteValues,
+        draw: tuple[np.ndarray, np.ndarray] | None = None,
+        weigh_draw: bool | np.ndarray = False,
+        *,
+        drawn: np.ndarray | None = None,
+        runs: np.ndarray | None = None,
+        write_prediction: bool = True,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The periodic update of the runs in ``runs``: each run's particles of this step
+        (drawn from ``N(draw)`` for the runs of ``drawn``, weighed by this step's ranges where
+        ``weigh_draw``; else reweighted by this step's ranges where ``filtered`` applied an
+        update), resampled, regularised and predicted. Returns the predicted clouds' means
+        and covariances (stored frame; NaN for runs not moving), written as the host's
+        prediction with ``write_prediction``. Shapes: see the module notes."""
+        host, B, n = self._host, self.batch_size, self._parameters.count
+        moving = np.ones(B, dtype=bool) if runs is None else _mask(runs, B)
+        if draw is None:
+            drawn = np.zeros(B, dtype=bool)
+            draw_x, draw_P = np.zeros((B, 6)), np.zeros((B, 6, 6))
+        else:
+            drawn = moving if drawn is None else _mask(drawn, B) & moving
+            draw_x, draw_P = _runs(draw[0], B, STATE_SIZE), _runs(draw[1], B, 6, 6)
+        weighed = _mask(weigh_draw, B) & drawn
+        reweigh = _mask(np.asarray(filtered.status) == VALID, B) & moving & ~drawn
+        log_weights = self._log_weights_runs(context)
+        # Where this step's ranges reweight the cloud, the posterior's (a new array either way).
+        posterior = self._posterior.Eval(context)[3] if reweigh.any() else log_weights
+        log_weights = np.where(reweigh[:, np.newaxis], posterior, log_weights)
+        m = self._measurement(context, self._R_runs)  # a draw is weighed by the sonars' R
+        keys = cloud_keys(np.array(self._seed_port.Eval(context), dtype=float))
+        acceleration = _runs(host.vehicle_motion.acceleration(context), B, 3)
+        Q_nav = host.navigation_process_noise(context)
+        if Q_nav is None:
+            jitter = np.zeros((B, 6, 6))
+        else:  # the modelled navigation errors' process noise, a factor per run
+            jitter = psd_factors(_runs(Q_nav, B, 6, 6))
+        out = discrete_state.get_mutable_value(self._particles_index).reshape(B, n, STATE_SIZE)
+        out_log_weights = discrete_state.get_mutable_value(self._log_weights_index).reshape(B, n)
+        x, P = np.empty((B, 6)), np.empty((B, 6, 6))
+        cloud_advance(
+            self._stored_runs(context), log_weights, keys, moving, drawn, draw_x, draw_P,
+            weighed, m.offset, m.z, m.used, m.q_s, m.R, self._A, self._Bu, acceleration,
+            self._W_factor, jitter, self._parameters.resample_threshold,
+            self._parameters.bandwidth, out, out_log_weights, x, P,
+        )  # fmt: skip
+        discrete_state.set_value(self._live_index, moving.astype(float))
+        if write_prediction:
+            if self._one_run_host:
+                host.write_prediction(discrete_state, x[0], P[0])
+            else:
+                host.write_prediction(discrete_state, x, P)
+        return x, P
 
     # ----------------------------------------------------------------------- late ranges
 
@@ -287,7 +481,7 @@ class ParticleCloud:
         return self._move(particles, u, G, B @ a, out), log_weights, new_nis
 
     def _window_posterior(self, context: Context) -> tuple:
-        """``(x, P, nis, log_weights, None, first)`` at this tick from the anchor's cloud
+        """``(x, P, nis, log_weights, first)`` at this tick from the anchor's cloud
         stepped through the window, then this tick's ranges; ``first`` the first step's log
         weights and acceleration when its ranges have all arrived (the periodic update
         resamples with them)."""
@@ -295,8 +489,8 @@ class ParticleCloud:
         work = self._work
         j = self._window.tick(context)
         D = self._window.schedule.window
-        particles = self._stored(context)
-        log_weights = self.log_weights(context)
+        particles = self._stored_runs(context)[0].T
+        log_weights = self._log_weights_runs(context)[0]
         u = self.accelerations(context)
         jitter = self.jitter(context)
         nis_total, first = [], None
@@ -320,7 +514,7 @@ class ParticleCloud:
             nis_total.append(nis)
         x, P = weighted_moments(relative, normalised(log_weights), work)
         nis = float(sum(nis_total)) if nis_total else math.nan
-        return x, P, nis, log_weights, None, first
+        return x, P, nis, log_weights, first
 
     @_on_one_blas_thread
     def advance_window(
@@ -340,7 +534,7 @@ class ParticleCloud:
         count = self._parameters.count
         D = self._window.schedule.window
         L = self._W_factor
-        out = discrete_state.get_mutable_value(self._particles_index).reshape(STATE_SIZE, count)
+        out = discrete_state.get_mutable_value(self._particles_index).reshape(count, STATE_SIZE).T
         u_next = discrete_state.get_mutable_value(self._accelerations_index).reshape(D, 3, count)
         jitter_next = root = None
         if self._jitter_index is not None:
@@ -356,11 +550,11 @@ class ParticleCloud:
                 if jitter_next is not None:
                     self._draw_jitter(root, rng, jitter_next[k])
         else:
-            particles = self._stored(context)
-            log_weights = self.log_weights(context)
+            particles = self._stored_runs(context)[0].T
+            log_weights = self._log_weights_runs(context)[0]
             u = self.accelerations(context)
             jitter = self.jitter(context)
-            first = self._posterior.Eval(context)[5]
+            first = self._posterior.Eval(context)[4]
             chosen = None
             if first is None:
                 out[...] = particles
@@ -385,59 +579,7 @@ class ParticleCloud:
         x, P = weighted_moments(out, normalised(log_weights), work)
         host.write_prediction(discrete_state, x, P)
         discrete_state.set_value(self._log_weights_index, log_weights)
-
-    @_on_one_blas_thread
-    def advance(
-        self,
-        context: Context,
-        filtered: FilteredEstimate,
-        discrete_state: DiscreteValues,
-        draw: tuple[np.ndarray, np.ndarray] | None = None,
-        weigh_draw: bool = False,
-    ) -> None:
-        """The periodic update: the particles of this step (drawn from ``N(draw)``, weighed by
-        this step's ranges with ``weigh_draw``; else reweighted by this step's ranges when
-        ``filtered`` applied an update), resampled, regularised and predicted; the host's
-        prediction becomes the predicted cloud's mean and covariance."""
-        host = self._host
-        work = self._work
-        u = float(self._seed_port.Eval(context)[0])
-        rng = np.random.default_rng(int(u * 2.0**_SEED_BITS))
-        count = self._parameters.count
-        weights = moments = None
-        if draw is not None:
-            particles = initial_particles(draw[0], draw[1], count, rng)
-            log_weights = np.full(count, -math.log(count))
-            if weigh_draw:
-                ranges = host.ranges(context)
-                terms = range_terms(particles, ranges.z, ranges.q_s, self._R, ranges.sonars, work)
-                log_weights = weigh(log_weights, *terms, work)[1]
-        else:
-            particles = self._relative(context, work[4])
-            if filtered.status == VALID:  # this step's ranges reweight the cloud
-                x, P, _, log_weights, weights, _ = self._posterior.Eval(context)
-                moments = (x, P)
-            else:  # no update, or one the gate rejected: the prediction's weights stand
-                log_weights = self.log_weights(context)
-        motion = host.vehicle_motion
-        if motion.state_ports:  # back to the stored frame: the target's particles, negated
-            particles = np.subtract(particles, motion.offset(context)[:, np.newaxis], out=work[4])
-            moments = None  # the posterior's are of the relative particles
-        A, B, W = host.model
-        out = discrete_state.get_mutable_value(self._particles_index).reshape(STATE_SIZE, count)
-        _, log_weights, resampled = pf_predict(
-            particles, log_weights, motion.acceleration(context), A, B, W, rng,
-            self._parameters, weights=weights, moments=moments, work=work, out=out,
-            W_factor=self._W_factor,
-        )  # fmt: skip
-        jitter = self._draw_jitter(self._jitter_root(context), rng)
-        if jitter is not None:  # the modelled navigation errors' process noise
-            out += jitter
-        if resampled or weights is None:
-            weights = np.exp(log_weights)
-        x, P = weighted_moments(out, weights, work)
-        host.write_prediction(discrete_state, x, P)
-        discrete_state.set_value(self._log_weights_index, log_weights)
+        discrete_state.set_value(self._live_index, np.ones(1))
 
 
 def _shift_window(slots: np.ndarray, chosen: np.ndarray | None, out: np.ndarray) -> None:
