@@ -70,6 +70,7 @@ from threadpoolctl import ThreadpoolController
 from drake_uuv.estimators.base import FilteredEstimate, RelativeStateEstimator
 from drake_uuv.estimators.timed_step import instant_ranges, instants
 from drake_uuv.models.measurement import VALID
+from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.particle_filter import (
     STATE_SIZE,
     ParticleFilterParameters,
@@ -231,17 +232,28 @@ class ParticleCloud:
             # steps (4 and 5 in turn).
             self._work = Workspace(n, arrays=6)
         A, Bu, W = host.model
-        self._A = np.ascontiguousarray(A, dtype=float)
-        self._Bu = np.ascontiguousarray(Bu, dtype=float)
+        self._time_step = float(A[0, 3])
+        expected = double_integrator(self._time_step)
+        if not (np.array_equal(A, expected[0]) and np.array_equal(Bu, expected[1])):
+            raise ValueError(
+                f"model: must be a double integrator, got A = {np.asarray(A).tolist()}"
+            )
         self._W_factor = np.linalg.cholesky(np.asarray(W, dtype=float))
         # The posterior, shared by the filtered output and the periodic update: (x, P, nis,
-        # log weights, and with late ranges the first step's (log weights, acceleration)
-        # once the window is full, else None).
+        # log weights, weights, and with late ranges the first step's (log weights,
+        # acceleration) once the window is full, else None).
         self._posterior = host.DeclareCacheEntry(
             "particle posterior",
             ValueProducer(
                 allocate=AbstractValue.Make(
-                    (np.zeros((B, 6)), np.zeros((B, 6, 6)), np.zeros(B), np.zeros((B, n)), None)
+                    (
+                        np.zeros((B, 6)),
+                        np.zeros((B, 6, 6)),
+                        np.zeros(B),
+                        np.zeros((B, n)),
+                        np.zeros((B, n)),
+                        None,
+                    )
                 ).Clone,
                 calc=self._calc_posterior,
             ),
@@ -314,7 +326,7 @@ class ParticleCloud:
     def posterior(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(x, P, nis, log_weights)`` of this step's ranges, each run's (see the module
         notes; with late ranges, of the window's and this tick's ranges)."""
-        x, P, nis, log_weights, _ = self._posterior.Eval(context)
+        x, P, nis, log_weights, _, _ = self._posterior.Eval(context)
         if self._one_run_host:
             return x[0], P[0], float(nis[0]), log_weights[0]
         return x, P, nis, log_weights
@@ -322,17 +334,17 @@ class ParticleCloud:
     def _calc_posterior(self, context: Context, value: AbstractValue) -> None:
         if self._window is not None:
             x, P, nis, log_weights, first = self._window_posterior(context)
-            value.set_value((x[None], P[None], np.array([nis]), log_weights[None], first))
+            value.set_value((x[None], P[None], np.array([nis]), log_weights[None], None, first))
             return
         B, n = self.batch_size, self._parameters.count
         m = self._measurement(context)
         x, P, nis = np.empty((B, 6)), np.empty((B, 6, 6)), np.empty(B)
-        log_posterior = np.empty((B, n))
+        log_posterior, weights = np.empty((B, n)), np.empty((B, n))
         cloud_posterior(
             self._stored_runs(context), self._log_weights_runs(context), m.offset, m.z, m.used,
-            m.q_s, m.R, self.live(context), x, P, nis, log_posterior,
+            m.q_s, m.R, self.live(context), x, P, nis, log_posterior, weights,
         )  # fmt: skip
-        value.set_value((x, P, nis, log_posterior, None))
+        value.set_value((x, P, nis, log_posterior, weights, None))
 
     def advance(
         self,
@@ -362,10 +374,10 @@ class ParticleCloud:
             draw_x, draw_P = _runs(draw[0], B, STATE_SIZE), _runs(draw[1], B, 6, 6)
         weighed = _mask(weigh_draw, B) & drawn
         reweigh = _mask(np.asarray(filtered.status) == VALID, B) & moving & ~drawn
-        log_weights = self._log_weights_runs(context)
-        # Where this step's ranges reweight the cloud, the posterior's (a new array either way).
-        posterior = self._posterior.Eval(context)[3] if reweigh.any() else log_weights
-        log_weights = np.where(reweigh[:, np.newaxis], posterior, log_weights)
+        if reweigh.any():  # this step's ranges reweight those runs' clouds
+            posterior = self._posterior.Eval(context)
+        else:  # not read
+            posterior = (np.empty((B, 6)), np.empty((B, 6, 6)), None, *np.empty((2, B, n)))
         m = self._measurement(context, self._R_runs)  # a draw is weighed by the sonars' R
         keys = cloud_keys(np.array(self._seed_port.Eval(context), dtype=float))
         acceleration = _runs(host.vehicle_motion.acceleration(context), B, 3)
@@ -378,8 +390,9 @@ class ParticleCloud:
         out_log_weights = discrete_state.get_mutable_value(self._log_weights_index).reshape(B, n)
         x, P = np.empty((B, 6)), np.empty((B, 6, 6))
         cloud_advance(
-            self._stored_runs(context), log_weights, keys, moving, drawn, draw_x, draw_P,
-            weighed, m.offset, m.z, m.used, m.q_s, m.R, self._A, self._Bu, acceleration,
+            self._stored_runs(context), self._log_weights_runs(context), reweigh,
+            posterior[3], posterior[4], posterior[0], posterior[1], keys, moving, drawn, draw_x,
+            draw_P, weighed, m.offset, m.z, m.used, m.q_s, m.R, self._time_step, acceleration,
             self._W_factor, jitter, self._parameters.resample_threshold,
             self._parameters.bandwidth, out, out_log_weights, x, P,
         )  # fmt: skip
@@ -554,7 +567,7 @@ class ParticleCloud:
             log_weights = self._log_weights_runs(context)[0]
             u = self.accelerations(context)
             jitter = self.jitter(context)
-            first = self._posterior.Eval(context)[4]
+            first = self._posterior.Eval(context)[5]
             chosen = None
             if first is None:
                 out[...] = particles

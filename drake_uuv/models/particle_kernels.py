@@ -38,6 +38,9 @@ SLOTS = 32
 DRAW_SLOT, KERNEL_SLOT, ACCELERATION_SLOT, JITTER_SLOT = 0, 6, 12, 15
 _SLOT_SHIFT = np.uint64(6)
 _GAMMA = np.uint64(0x9E3779B97F4A7C15)
+# Products and sums may fuse into FMAs (the same instructions for every run and batch); no
+# other reordering, so each sum still runs in the loop's order.
+_CONTRACT = {"contract"}
 #: The key's source: a cloud's stream differs from any RunNoise source's.
 CLOUD_SOURCE = source_id("particle cloud")
 
@@ -244,7 +247,7 @@ def _normalise(log_weights: np.ndarray, weights: np.ndarray) -> None:  # pragma:
         weights[i] *= scale
 
 
-@njit
+@njit(fastmath=_CONTRACT)
 def _moments(
     particles: np.ndarray, offset: np.ndarray, weights: np.ndarray, x: np.ndarray, P: np.ndarray
 ) -> None:  # pragma: no cover - compiled
@@ -337,7 +340,7 @@ def _moments(
     P[5, 5] = c55
 
 
-@njit
+@njit(fastmath=_CONTRACT)
 def _weigh(
     particles: np.ndarray,
     offset: np.ndarray,
@@ -424,7 +427,7 @@ def _weigh(
     return nis
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_CONTRACT)
 def cloud_posterior(
     particles: np.ndarray,
     log_weights: np.ndarray,
@@ -438,13 +441,15 @@ def cloud_posterior(
     P: np.ndarray,
     nis: np.ndarray,
     log_posterior: np.ndarray,
+    posterior_weights: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """The measurement update of every live run (deterministic): the particles
     ``particles + offset`` (B×N×6, with ``log_weights`` B×N) reweighted by the used sonars'
     ranges ``z`` (B×2; ``used`` B×2, ``q_s`` B×3, ``R`` B×2×2). Writes the posterior's weighted
     mean and covariance (``x`` B×6, ``P`` B×6×6), the NIS (``nis`` B, NaN without a range)
-    and the normalised log weights (``log_posterior`` B×N); a run not ``live`` gets NaN
-    moments and NIS and its log weights unchanged."""
+    and the normalised log weights (``log_posterior`` B×N) and weights
+    (``posterior_weights``); a run not ``live`` gets NaN moments, NIS and weights and its log
+    weights unchanged."""
     B, n = log_weights.shape
     prior = np.empty(n)
     ranges = np.empty((n, 2))
@@ -454,19 +459,25 @@ def cloud_posterior(
             P[b, :, :] = math.nan
             nis[b] = math.nan
             log_posterior[b, :] = log_weights[b, :]
+            posterior_weights[b, :] = math.nan
             continue
         _normalise(log_weights[b], prior)
         nis[b] = _weigh(
             particles[b], offset[b], log_weights[b], prior, z[b], used[b], q_s[b], R[b], ranges,
-            log_posterior[b], prior,
+            log_posterior[b], posterior_weights[b],
         )  # fmt: skip
-        _moments(particles[b], offset[b], prior, x[b], P[b])
+        _moments(particles[b], offset[b], posterior_weights[b], x[b], P[b])
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_CONTRACT)
 def cloud_advance(
     particles: np.ndarray,
     log_weights: np.ndarray,
+    reweigh: np.ndarray,
+    posterior_log_weights: np.ndarray,
+    posterior_weights: np.ndarray,
+    posterior_x: np.ndarray,
+    posterior_P: np.ndarray,
     keys: np.ndarray,
     moving: np.ndarray,
     drawn: np.ndarray,
@@ -478,8 +489,7 @@ def cloud_advance(
     used: np.ndarray,
     q_s: np.ndarray,
     R: np.ndarray,
-    A: np.ndarray,
-    Bu: np.ndarray,
+    time_step: float,
     acceleration: np.ndarray,
     W_factor: np.ndarray,
     jitter: np.ndarray,
@@ -490,16 +500,21 @@ def cloud_advance(
     x: np.ndarray,
     P: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """The periodic update of every ``moving`` run: its cloud (``particles`` B×N×6 stored,
-    ``log_weights`` B×N), or for a ``drawn`` run N draws of ``N(draw_x, draw_P)`` (relative,
-    B×6 and B×6×6) less ``offset`` (B×6; weighed by the ranges ``z``, ``used``, ``q_s``, ``R``
-    where ``weigh_draw``), resampled when its effective sample size is below
-    ``resample_threshold · N`` (systematic, then Liu and West's shrinkage kernel of
-    ``bandwidth``), then moved by ``x⁺ = A x + Bu (a − L_W ε)`` (``acceleration`` B×3,
-    ``W_factor`` 3×3) plus ``jitter[b] ε'`` (B×6×6 factors of the navigation's process noise;
-    zeros: none). Writes the particles to ``out`` (B×N×6; may not be ``particles``), their
-    log weights to ``out_log_weights`` and the predicted mean and covariance to ``x``, ``P``.
-    A run not moving is not written (``x``, ``P`` NaN). Draws: run b's ``keys[b]``."""
+    """The periodic update of every ``moving`` run.
+
+    A run's cloud of this step: for a ``drawn`` run, N draws of ``N(draw_x, draw_P)``
+    (relative, B×6 and B×6×6) less ``offset`` (B×6), weighed by the ranges ``z``, ``used``,
+    ``q_s``, ``R`` where ``weigh_draw``; else its ``particles`` (B×N×6, stored frame) with
+    ``log_weights`` (B×N), or where ``reweigh`` the posterior's (:func:`cloud_posterior`'s
+    ``posterior_log_weights``, their normalised ``posterior_weights`` and moments
+    ``posterior_x``, ``posterior_P``, relative frame; unread elsewhere). Resampled when its
+    effective sample size is below ``resample_threshold · N`` (systematic, then Liu and West's
+    shrinkage kernel of ``bandwidth``), then moved by the double integrator of ``time_step``
+    ``t``: ``q⁺ = q + t ϑ + ½t² (a − ū)``, ``ϑ⁺ = ϑ + t (a − ū)``, ``ū = W_factor ε``
+    (``acceleration`` a, B×3), plus ``jitter[b] ε'`` (B×6×6 factors of the navigation's
+    process noise; zeros: none). Writes the particles to ``out`` (B×N×6; not ``particles``),
+    their log weights to ``out_log_weights`` and the predicted mean and covariance to ``x``,
+    ``P``. A run not moving is not written (``x``, ``P`` NaN). Draws: run b's ``keys[b]``."""
     B, n = log_weights.shape
     weights = np.empty(n)
     ranges = np.empty((n, 2))
@@ -507,18 +522,18 @@ def cloud_advance(
     drawn_cloud = np.empty((n, 6))
     lw = np.empty(n)
     L = np.empty((6, 6))
+    mean = np.empty(6)
     c = np.empty(6)
+    half = 0.5 * time_step * time_step
     for b in range(B):
         if not moving[b]:
             x[b, :] = math.nan
             P[b, :, :] = math.nan
             continue
         key = keys[b]
-        for k in range(6):
-            s = 0.0
-            for m in range(3):
-                s += Bu[k, m] * acceleration[b, m]
-            c[k] = s
+        for k in range(3):
+            c[k] = half * acceleration[b, k]
+            c[k + 3] = time_step * acceleration[b, k]
         if drawn[b]:
             psd_factor(draw_P[b], L)
             for i in range(n):
@@ -531,19 +546,31 @@ def cloud_advance(
                     weights,
                 )  # fmt: skip
             _advance_run(
-                drawn_cloud, lw, weights, key, chosen, L, c, A, Bu, W_factor, jitter[b],
-                resample_threshold, bandwidth, out[b], out_log_weights[b], x[b], P[b],
+                drawn_cloud, lw, weights, False, mean, P[b], key, chosen, L, c, time_step,
+                W_factor, jitter[b], resample_threshold, bandwidth, out[b], out_log_weights[b],
+                x[b], P[b],
+            )  # fmt: skip
+        elif reweigh[b]:  # the posterior's weights and moments (stored frame: less offset)
+            lw[:] = posterior_log_weights[b]
+            weights[:] = posterior_weights[b]
+            for k in range(6):
+                mean[k] = posterior_x[b, k] - offset[b, k]
+            _advance_run(
+                particles[b], lw, weights, True, mean, posterior_P[b], key, chosen, L, c,
+                time_step, W_factor, jitter[b], resample_threshold, bandwidth, out[b],
+                out_log_weights[b], x[b], P[b],
             )  # fmt: skip
         else:
             lw[:] = log_weights[b]
             _normalise(lw, weights)
             _advance_run(
-                particles[b], lw, weights, key, chosen, L, c, A, Bu, W_factor, jitter[b],
-                resample_threshold, bandwidth, out[b], out_log_weights[b], x[b], P[b],
+                particles[b], lw, weights, False, mean, P[b], key, chosen, L, c, time_step,
+                W_factor, jitter[b], resample_threshold, bandwidth, out[b], out_log_weights[b],
+                x[b], P[b],
             )  # fmt: skip
 
 
-@njit
+@njit(fastmath=_CONTRACT)
 def _draw_gaussian(
     key: np.uint64,
     particle: int,
@@ -568,17 +595,19 @@ def _draw_gaussian(
         out[k] = s - offset[k]
 
 
-@njit
+@njit(fastmath=_CONTRACT)
 def _advance_run(
     source: np.ndarray,
     lw: np.ndarray,
     weights: np.ndarray,
+    have_moments: bool,
+    mean: np.ndarray,
+    cov: np.ndarray,
     key: np.uint64,
     chosen: np.ndarray,
     L: np.ndarray,
     c: np.ndarray,
-    A: np.ndarray,
-    Bu: np.ndarray,
+    t: float,
     W_factor: np.ndarray,
     jitter: np.ndarray,
     resample_threshold: float,
@@ -589,12 +618,11 @@ def _advance_run(
     P: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """One run of :func:`cloud_advance` from its cloud ``source`` (N×6, stored frame) with
-    log weights ``lw`` and their normalised ``weights``: resampled and regularised when
-    degenerate, moved into ``target``; ``lw`` and ``weights`` become the predicted ones."""
+    log weights ``lw`` and their normalised ``weights`` (with ``have_moments``, their ``mean``
+    and ``cov``; else those are work space): resampled and regularised when degenerate, moved
+    into ``target``; ``lw`` and ``weights`` become the predicted ones."""
     n = source.shape[0]
     zero = np.zeros(6)
-    mean = np.empty(6)
-    cov = np.empty((6, 6))
     shift = np.empty(6)
     shrink = math.sqrt(1.0 - bandwidth * bandwidth)
     squares = 0.0
@@ -603,8 +631,12 @@ def _advance_run(
     resample = 1.0 / squares < resample_threshold * n
     if resample:
         if bandwidth > 0.0:  # the kernel's covariance: the cloud's before resampling
-            _moments(source, zero, weights, mean, cov)
-            psd_factor(cov, L)
+            if not have_moments:
+                moments = np.empty((6, 6))
+                _moments(source, zero, weights, mean, moments)
+                psd_factor(moments, L)
+            else:
+                psd_factor(cov, L)
             for k in range(6):
                 for m in range(6):
                     L[k, m] *= bandwidth
@@ -627,6 +659,7 @@ def _advance_run(
     for k in range(6):
         for m in range(6):
             jittered |= jitter[k, m] != 0.0
+    half = 0.5 * t * t
     p = np.empty(6)
     for i in range(n):
         if resample:
@@ -647,13 +680,13 @@ def _advance_run(
         u0 = W_factor[0, 0] * e0 + W_factor[0, 1] * e1 + W_factor[0, 2] * e2
         u1 = W_factor[1, 0] * e0 + W_factor[1, 1] * e1 + W_factor[1, 2] * e2
         u2 = W_factor[2, 0] * e0 + W_factor[2, 1] * e1 + W_factor[2, 2] * e2
-        for k in range(6):
-            s = c[k] - (Bu[k, 0] * u0 + Bu[k, 1] * u1 + Bu[k, 2] * u2)
-            s += (
-                A[k, 0] * p[0] + A[k, 1] * p[1] + A[k, 2] * p[2] + A[k, 3] * p[3]
-                + A[k, 4] * p[4] + A[k, 5] * p[5]
-            )  # fmt: skip
-            target[i, k] = s
+        # The double integrator: q + t ϑ + ½t² (a − ū), ϑ + t (a − ū).
+        target[i, 0] = (c[0] - half * u0) + (p[0] + t * p[3])
+        target[i, 1] = (c[1] - half * u1) + (p[1] + t * p[4])
+        target[i, 2] = (c[2] - half * u2) + (p[2] + t * p[5])
+        target[i, 3] = (c[3] - t * u0) + p[3]
+        target[i, 4] = (c[4] - t * u1) + p[4]
+        target[i, 5] = (c[5] - t * u2) + p[5]
         if jittered:  # the navigation's process noise, a draw per particle
             _draw_gaussian(key, i, JITTER_SLOT, zero, jitter, zero, p)
             for k in range(6):
