@@ -31,11 +31,20 @@ class CloudHost(LeafSystem):
     groups 0 and 1 the prediction the cloud writes, then the cloud's groups.
     """
 
-    def __init__(self, count: int = 300, *, batch_size: int = 1, threshold: float = 0.5) -> None:
+    def __init__(
+        self,
+        count: int = 300,
+        *,
+        batch_size: int = 1,
+        threshold: float = 0.5,
+        time_step: float = T,
+        acceleration_covariance: np.ndarray = W,
+        range_covariance: np.ndarray = R,
+    ) -> None:
         super().__init__()
         self.batch_size = batch_size
-        A, B = double_integrator(T)
-        self.model = (A, B, W)
+        A, B = double_integrator(time_step)
+        self.model = (A, B, np.asarray(acceleration_covariance, dtype=float))
         self.window = None
         self.error_model = SimpleNamespace(active=False, navigated_motion=False)
         self._ports = {
@@ -50,11 +59,11 @@ class CloudHost(LeafSystem):
         self._x_index = self.DeclareDiscreteState(np.zeros(6 * batch_size))
         self._P_index = self.DeclareDiscreteState(np.zeros(36 * batch_size))
         parameters = ParticleFilterParameters(count=count, resample_threshold=threshold)
-        self.cloud = ParticleCloud(self, parameters, R, batch_size=batch_size)
+        self.cloud = ParticleCloud(self, parameters, range_covariance, batch_size=batch_size)
         self.DeclareVectorOutputPort("x_hat", 6 * batch_size, self._calc_x)
         self.DeclareVectorOutputPort("P_hat", 36 * batch_size, self._calc_P)
         self.DeclareVectorOutputPort("nis", batch_size, self._calc_nis)
-        self.DeclarePeriodicDiscreteUpdateEvent(T, 0.0, self._update)
+        self.DeclarePeriodicDiscreteUpdateEvent(time_step, 0.0, self._update)
 
     def _read(self, context: Context, name: str) -> np.ndarray:
         return per_run(self._ports[name].Eval(context), self.batch_size)
