@@ -40,9 +40,9 @@ Each step the host calls:
 Accessors: :meth:`~ParticleCloud.particles` ``(B, N, 6)`` relative,
 :meth:`~ParticleCloud.log_weights` ``(B, N)``, :meth:`~ParticleCloud.set_particles`,
 :meth:`~ParticleCloud.live`. Memory: :func:`bytes_per_run` is what a batch holds per run
-(the state twice, the context's and the update's, and the posterior's log weights), so a
-study can size its batches: at N = 5000, 0.6 MB a run; at N = 20 000, 2.4 MB (B = 100:
-240 MB).
+(the state twice, the context's and the update's, and the posterior's log weights and
+weights), so a study can size its batches: at N = 5000, 0.64 MB a run; at N = 20 000,
+2.56 MB (B = 100: 256 MB).
 
 What the cloud reads of its host: ``model`` (A, B, W), ``window``, ``error_model``,
 ``depends_on_measurement()``, ``ranges(context)`` (``z``, ``valid``, ``q_s``, ``exact``,
@@ -112,10 +112,10 @@ def bytes_per_run(count: int, window: int = 0, navigation_noise: bool = False) -
     """The bytes a batch holds per run for a cloud of ``count`` particles: its discrete state
     (particles, log weights, live flag; with late ranges each window step's accelerations and,
     with ``navigation_noise``, navigation noise) twice, the context's and the periodic
-    update's, and the posterior's log weights (the cache). The kernels' work arrays (about
-    12 N doubles) are the batch's, not per run."""
+    update's, and the posterior's log weights and weights (the cache). The kernels' work
+    arrays (about 12 N doubles) are the batch's, not per run."""
     state = count * (STATE_SIZE + 1) + 1 + window * count * (3 + (6 if navigation_noise else 0))
-    return 8 * (2 * state + count)
+    return 8 * (2 * state + 2 * count)
 
 
 def _on_one_blas_thread(method: Callable) -> Callable:
@@ -161,13 +161,16 @@ class CloudMeasurement:
 def _runs(value: object, batch_size: int, *shape: int) -> np.ndarray:
     """A host's value as a new ``(B, *shape)`` array of doubles: a batch's, or one value for
     every run (the kernels take contiguous arrays of one kind, so each compiles once)."""
-    array = np.asarray(value, dtype=float).reshape(-1, *shape)
-    return np.broadcast_to(array, (batch_size, *shape)).copy()
+    array = np.asarray(value, dtype=float)
+    if array.size == batch_size * math.prod(shape):
+        return array.reshape(batch_size, *shape).copy()
+    return np.broadcast_to(array.reshape(-1, *shape), (batch_size, *shape)).copy()
 
 
 def _mask(value: object, batch_size: int) -> np.ndarray:
     """A per-run flag (or one flag for every run) as a new ``(B,)`` bool array."""
-    return np.broadcast_to(np.asarray(value, dtype=bool).reshape(-1), (batch_size,)).copy()
+    array = np.asarray(value, dtype=bool).reshape(-1)
+    return array.copy() if array.size == batch_size else np.full(batch_size, array[0])
 
 
 class ParticleCloud:
@@ -206,6 +209,8 @@ class ParticleCloud:
         self._parameters = parameters
         self._R = np.asarray(range_covariance, dtype=float)
         self._R_runs = np.ascontiguousarray(np.broadcast_to(self._R, (B, 2, 2)))
+        self._no_z, self._no_q_s = np.zeros((B, 2)), np.zeros((B, 3))
+        self._no_used = np.zeros((B, 2), dtype=bool)
         n = parameters.count
         self._particles_index = host.DeclareDiscreteState(np.zeros(B * n * STATE_SIZE))
         self._log_weights_index = host.DeclareDiscreteState(np.full(B * n, -math.log(n)))
@@ -336,15 +341,14 @@ class ParticleCloud:
             x, P, nis, log_weights, first = self._window_posterior(context)
             value.set_value((x[None], P[None], np.array([nis]), log_weights[None], None, first))
             return
-        B, n = self.batch_size, self._parameters.count
         m = self._measurement(context)
-        x, P, nis = np.empty((B, 6)), np.empty((B, 6, 6)), np.empty(B)
-        log_posterior, weights = np.empty((B, n)), np.empty((B, n))
+        # Written in place: the cache entry owns its arrays (B·N each, allocated once per
+        # context; a fresh pair each step would fault in and zero their pages every step).
+        x, P, nis, log_posterior, weights, _ = value.get_mutable_value()
         cloud_posterior(
             self._stored_runs(context), self._log_weights_runs(context), m.offset, m.z, m.used,
             m.q_s, m.R, self.live(context), x, P, nis, log_posterior, weights,
         )  # fmt: skip
-        value.set_value((x, P, nis, log_posterior, weights, None))
 
     def advance(
         self,
@@ -378,7 +382,11 @@ class ParticleCloud:
             posterior = self._posterior.Eval(context)
         else:  # not read
             posterior = (np.empty((B, 6)), np.empty((B, 6, 6)), None, *np.empty((2, B, n)))
-        m = self._measurement(context, self._R_runs)  # a draw is weighed by the sonars' R
+        if weighed.any():  # a draw is weighed by this step's ranges with the sonars' R
+            m = self._measurement(context, self._R_runs)
+        else:  # only the offset is read
+            offset = _runs(host.vehicle_motion.offset(context), B, STATE_SIZE)
+            m = CloudMeasurement(self._no_z, self._no_used, self._no_q_s, self._R_runs, offset)
         keys = cloud_keys(np.array(self._seed_port.Eval(context), dtype=float))
         acceleration = _runs(host.vehicle_motion.acceleration(context), B, 3)
         Q_nav = host.navigation_process_noise(context)

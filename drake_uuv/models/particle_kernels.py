@@ -570,7 +570,7 @@ def cloud_advance(
             )  # fmt: skip
 
 
-@njit(fastmath=_CONTRACT)
+@njit(inline="always", fastmath=_CONTRACT)
 def _draw_gaussian(
     key: np.uint64,
     particle: int,
@@ -580,19 +580,28 @@ def _draw_gaussian(
     offset: np.ndarray,
     out: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """A draw of ``N(mean, L Lᵀ)`` less ``offset`` from six slots of a particle, in ``out``."""
+    """A draw of ``N(mean, L Lᵀ)`` (``L`` lower triangular, as :func:`psd_factor` gives it)
+    less ``offset`` from six slots of a particle, in ``out``."""
     e0 = _normal(key, _slot(particle, slot))
     e1 = _normal(key, _slot(particle, slot + 1))
     e2 = _normal(key, _slot(particle, slot + 2))
     e3 = _normal(key, _slot(particle, slot + 3))
     e4 = _normal(key, _slot(particle, slot + 4))
     e5 = _normal(key, _slot(particle, slot + 5))
-    for k in range(6):
-        s = mean[k] + (
-            L[k, 0] * e0 + L[k, 1] * e1 + L[k, 2] * e2 + L[k, 3] * e3 + L[k, 4] * e4
-            + L[k, 5] * e5
-        )  # fmt: skip
-        out[k] = s - offset[k]
+    out[0] = mean[0] + L[0, 0] * e0 - offset[0]
+    out[1] = mean[1] + (L[1, 0] * e0 + L[1, 1] * e1) - offset[1]
+    out[2] = mean[2] + (L[2, 0] * e0 + L[2, 1] * e1 + L[2, 2] * e2) - offset[2]
+    out[3] = mean[3] + (L[3, 0] * e0 + L[3, 1] * e1 + L[3, 2] * e2 + L[3, 3] * e3) - offset[3]
+    out[4] = (
+        mean[4] + (L[4, 0] * e0 + L[4, 1] * e1 + L[4, 2] * e2 + L[4, 3] * e3 + L[4, 4] * e4)
+        - offset[4]
+    )  # fmt: skip
+    out[5] = (
+        mean[5] + (
+            L[5, 0] * e0 + L[5, 1] * e1 + L[5, 2] * e2 + L[5, 3] * e3 + L[5, 4] * e4
+            + L[5, 5] * e5
+        ) - offset[5]
+    )  # fmt: skip
 
 
 @njit(fastmath=_CONTRACT)

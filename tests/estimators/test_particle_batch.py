@@ -170,6 +170,6 @@ def test_each_run_draws_its_own_target_acceleration_noise():
 
 
 def test_the_memory_of_a_run():
-    assert bytes_per_run(5000) == 8 * (2 * (7 * 5000 + 1) + 5000)
-    assert bytes_per_run(20_000) * 100 < 250e6
+    assert bytes_per_run(5000) == 8 * (2 * (7 * 5000 + 1) + 2 * 5000)
+    assert bytes_per_run(20_000) * 100 < 260e6
     assert bytes_per_run(5000, window=2, navigation_noise=True) > bytes_per_run(5000, window=2)
