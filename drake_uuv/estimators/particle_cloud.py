@@ -208,7 +208,8 @@ class ParticleCloud:
         self._one_run_host = getattr(host, "batch_size", None) is None
         self._parameters = parameters
         self._R = np.asarray(range_covariance, dtype=float)
-        self._R_runs = np.ascontiguousarray(np.broadcast_to(self._R, (B, 2, 2)))
+        # Writable like every other array the kernels take: one compiled signature each.
+        self._R_runs = np.broadcast_to(self._R, (B, 2, 2)).copy()
         self._no_z, self._no_q_s = np.zeros((B, 2)), np.zeros((B, 3))
         self._no_used = np.zeros((B, 2), dtype=bool)
         n = parameters.count
