@@ -157,7 +157,7 @@ def reference_step(
     log weights it should give, to rounding. ``draw``: the cloud is drawn from ``N(draw)``
     (relative, less ``offset``) first, and weighed by ``weigh`` (the drawn particles' log
     weights) when given; ``jitter``: a factor of the navigation's noise."""
-    from drake_uuv.models import particle_kernels as kernels
+    from drake_uuv.models import particle_random as kernels
     from drake_uuv.models.particle_filter import (
         effective_sample_size,
         normalised,

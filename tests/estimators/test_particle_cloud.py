@@ -21,7 +21,7 @@ from pydrake.systems.primitives import (
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from drake_uuv.estimators import RangeFilter
-from drake_uuv.estimators.particle_cloud import _on_one_blas_thread
+from drake_uuv.estimators.particle_window import _on_one_blas_thread
 from drake_uuv.models.handover import Phase
 from drake_uuv.models.measurement import DROPPED, VALID
 from drake_uuv.models.motion import process_noise_covariance

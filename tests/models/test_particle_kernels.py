@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from drake_uuv.models import particle_kernels as kernels
+from drake_uuv.models import particle_advance, particle_kernels, particle_random
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
 from drake_uuv.models.particle_filter import ParticleFilterParameters, pf_update
 from tests.estimators.cloud_host import reference_step
@@ -40,7 +40,7 @@ def posterior(particles, log_weights, z, used, q_s, R, offset=None, live=None):
     live = np.ones(runs, dtype=bool) if live is None else live
     out = (np.empty((runs, 6)), np.empty((runs, 6, 6)), np.empty(runs))
     log_post, weights = np.empty((runs, count)), np.empty((runs, count))
-    kernels.cloud_posterior(
+    particle_kernels.cloud_posterior(
         particles, log_weights, offset, z, used, q_s, R, live, *out, log_post, weights
     )
     return (*out, log_post, weights)
@@ -61,8 +61,8 @@ def advance(particles, log_weights, seeds, parameters, a_W, **options):
     out, out_log = np.empty((runs, count, 6)), np.empty((runs, count))
     x, P = np.empty((runs, 6)), np.empty((runs, 6, 6))
     empty = np.empty((runs, count))
-    kernels.cloud_advance(
-        particles, log_weights, zeros, empty, empty, x, P, kernels.cloud_keys(seeds),
+    particle_advance.cloud_advance(
+        particles, log_weights, zeros, empty, empty, x, P, particle_random.cloud_keys(seeds),
         np.ones(runs, dtype=bool), drawn, draw_x, draw_P, zeros, np.zeros((runs, 6)), z, used,
         q_s, R, T, np.tile(a_W, (runs, 1)), np.linalg.cholesky(W), jitter,
         parameters.resample_threshold, parameters.bandwidth, out, out_log, x, P,
@@ -71,8 +71,8 @@ def advance(particles, log_weights, seeds, parameters, a_W, **options):
 
 
 def test_normals_are_standard_in_moments_and_tails_and_a_function_of_key_and_slot():
-    keys = kernels.cloud_keys(np.array([0.1, 0.2]))
-    draws = kernels.standard_normals(keys, 200_000, 0, 3)
+    keys = particle_random.cloud_keys(np.array([0.1, 0.2]))
+    draws = particle_random.standard_normals(keys, 200_000, 0, 3)
     sample = draws.ravel()
     n = sample.size
     assert abs(sample.mean()) < 5.0 / math.sqrt(n)
@@ -83,25 +83,25 @@ def test_normals_are_standard_in_moments_and_tails_and_a_function_of_key_and_slo
     # Slots and keys are independent streams; a draw is the same however it is asked for.
     assert abs(np.corrcoef(draws[0, :, 0], draws[0, :, 1])[0, 1]) < 5.0 / math.sqrt(200_000)
     assert abs(np.corrcoef(draws[0, :, 0], draws[1, :, 0])[0, 1]) < 5.0 / math.sqrt(200_000)
-    assert_array_equal(kernels.standard_normals(keys[1:], 10, 1, 2)[0], draws[1, :10, 1:3])
+    assert_array_equal(particle_random.standard_normals(keys[1:], 10, 1, 2)[0], draws[1, :10, 1:3])
 
 
 def test_keys_are_a_function_of_the_uniform_alone():
     u = np.array([0.0, 0.25, 0.5, 0.999])
-    assert_array_equal(kernels.cloud_keys(u)[1:3], kernels.cloud_keys(u[1:3]))
-    assert len(set(kernels.cloud_keys(u).tolist())) == 4
+    assert_array_equal(particle_random.cloud_keys(u)[1:3], particle_random.cloud_keys(u[1:3]))
+    assert len(set(particle_random.cloud_keys(u).tolist())) == 4
 
 
 def test_psd_factor_is_cholesky_and_tolerates_singular_and_nan_matrices():
     M = np.random.default_rng(3).standard_normal((6, 6))
     M = M @ M.T + 0.1 * np.eye(6)
-    assert_allclose(kernels.psd_factors(M[None])[0], np.linalg.cholesky(M), rtol=1e-12)
+    assert_allclose(particle_kernels.psd_factors(M[None])[0], np.linalg.cholesky(M), rtol=1e-12)
     Q = process_noise_covariance(W, T)  # rank 3
-    L = kernels.psd_factors(Q[None])[0]
+    L = particle_kernels.psd_factors(Q[None])[0]
     assert np.all(np.isfinite(L)) and np.allclose(L @ L.T, Q, rtol=1e-9, atol=1e-16)
     bad = M.copy()
     bad[2, 2] = np.nan
-    assert np.isnan(kernels.psd_factors(bad[None])[0][2:, 2]).all()
+    assert np.isnan(particle_kernels.psd_factors(bad[None])[0][2:, 2]).all()
 
 
 @pytest.mark.parametrize("sonars", [(0, 1), (0,), (1,)])
