@@ -151,7 +151,18 @@ class ParticleCloud(LateRangeSteps):
         self.batch_size = B = batch_size_field(batch_size)
         self._host = host
         # A host that does not step batches yet reads one run's values (shapes only).
-        self._one_run_host = getattr(host, "batch_size", None) is None
+        host_batch = getattr(host, "batch_size", None)
+        self._one_run_host = host_batch is None
+        if host_batch is not None and host_batch != B:
+            raise ValueError(f"batch_size: must be the host's ({host_batch}), got {B}")
+        A, Bu, W = host.model
+        self._time_step = float(A[0, 3])
+        expected = double_integrator(self._time_step)
+        if not (np.array_equal(A, expected[0]) and np.array_equal(Bu, expected[1])):
+            raise ValueError(
+                f"model: must be a double integrator, got A = {np.asarray(A).tolist()}"
+            )
+        self._W_factor = np.linalg.cholesky(np.asarray(W, dtype=float))
         self._parameters = parameters
         self._R = np.asarray(range_covariance, dtype=float)
         # Writable like every other array the kernels take: one compiled signature each.
@@ -183,14 +194,6 @@ class ParticleCloud(LateRangeSteps):
             # The late-range steps' work arrays (0-3) and the particles of the window's
             # steps (4 and 5 in turn).
             self._work = Workspace(n, arrays=6)
-        A, Bu, W = host.model
-        self._time_step = float(A[0, 3])
-        expected = double_integrator(self._time_step)
-        if not (np.array_equal(A, expected[0]) and np.array_equal(Bu, expected[1])):
-            raise ValueError(
-                f"model: must be a double integrator, got A = {np.asarray(A).tolist()}"
-            )
-        self._W_factor = np.linalg.cholesky(np.asarray(W, dtype=float))
         # The posterior, shared by the filtered output and the periodic update: (x, P, nis,
         # log weights, weights, and with late ranges the first step's (log weights,
         # acceleration) once the window is full, else None).

@@ -173,3 +173,17 @@ def test_the_memory_of_a_run():
     assert bytes_per_run(5000) == 8 * (2 * (7 * 5000 + 1) + 2 * 5000)
     assert bytes_per_run(20_000) * 100 < 260e6
     assert bytes_per_run(5000, window=2, navigation_noise=True) > bytes_per_run(5000, window=2)
+
+
+def test_a_cloud_takes_its_host_s_batch_and_a_double_integrator():
+    from drake_uuv.estimators.particle_cloud import ParticleCloud
+    from drake_uuv.models.particle_filter import ParticleFilterParameters
+
+    host = CloudHost(COUNT, batch_size=2)
+    with pytest.raises(ValueError, match=r"batch_size: must be the host's \(2\), got 3"):
+        ParticleCloud(host, ParticleFilterParameters(count=COUNT), np.eye(2), batch_size=3)
+    A = host.model[0].copy()
+    A[0, 0] = 1.5  # not the double integrator
+    host.model = (A, host.model[1], host.model[2])
+    with pytest.raises(ValueError, match="model: must be a double integrator"):
+        ParticleCloud(host, ParticleFilterParameters(count=COUNT), np.eye(2), batch_size=2)
