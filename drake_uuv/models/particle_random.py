@@ -13,6 +13,11 @@ ziggurat method for generating random variables"; the tables as numpy's legacy g
 builds them): one 64-bit output gives a normal 99 % of the time, about 2 ns here, where the
 Box–Muller transform took 15-35 ns and numpy's generator 10-20 ns (the draws were half of a
 step's cost).
+
+numba's cache checks a compiled function's own file only: the kernels of
+:mod:`~drake_uuv.models.particle_kernels` and :mod:`~drake_uuv.models.particle_advance` keep
+their compiled draws after an edit here until their caches (``__pycache__/particle_*.nbi``,
+``.nbc``) are removed.
 """
 
 import hashlib
