@@ -33,9 +33,9 @@ Each step the host calls:
   a run entering the particles draws its cloud from, for the runs of ``drawn`` (``(B,)``,
   default every run of ``runs``), weighed by its step's ranges where ``weigh_draw`` (``(B,)``
   or one bool). Returns the predicted clouds' mean and covariance, ``(B, 6)``, ``(B, 6, 6)``,
-  stored frame, NaN for the runs not moving; with ``write_prediction`` it also writes them
-  as the host's prediction (all runs: pass False and merge by ``runs`` when some runs are not
-  in the particle phase).
+  stored frame, NaN for the runs not moving; with ``write_prediction`` it also writes the
+  moving runs' as the host's prediction (``host.write_prediction(discrete_state, x, P,
+  runs=runs)``: the other runs keep what the host wrote).
 
 Accessors: :meth:`~ParticleCloud.particles` ``(B, N, 6)`` relative,
 :meth:`~ParticleCloud.log_weights` ``(B, N)``, :meth:`~ParticleCloud.set_particles`,
@@ -358,6 +358,6 @@ class ParticleCloud(LateRangeSteps):
         if write_prediction:
             if self._one_run_host:
                 host.write_prediction(discrete_state, x[0], P[0])
-            else:
-                host.write_prediction(discrete_state, x, P)
+            else:  # the moving runs' rows only: the others keep the host's own
+                host.write_prediction(discrete_state, x, P, runs=moving)
         return x, P

@@ -83,9 +83,20 @@ class CloudHost(LeafSystem):
     def navigation_process_noise(self, context: Context) -> np.ndarray:
         return self._read(context, "Q_nav").reshape(-1, 6, 6)
 
-    def write_prediction(self, discrete_state: DiscreteValues, x: np.ndarray, P: np.ndarray):
-        discrete_state.set_value(self._x_index, np.asarray(x).ravel())
-        discrete_state.set_value(self._P_index, np.asarray(P).ravel())
+    def write_prediction(
+        self,
+        discrete_state: DiscreteValues,
+        x: np.ndarray,
+        P: np.ndarray,
+        runs: np.ndarray | None = None,
+    ) -> None:
+        """As the estimators' base: every run's, or the rows of the mask ``runs`` only."""
+        B = self.batch_size
+        runs = np.ones(B, dtype=bool) if runs is None else runs
+        x_state = per_run(discrete_state.get_mutable_value(self._x_index), B)
+        P_state = per_run(discrete_state.get_mutable_value(self._P_index), B, 6, 6)
+        x_state[runs] = np.reshape(x, (B, 6))[runs]
+        P_state[runs] = np.reshape(P, (B, 6, 6))[runs]
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         draw = (self._read(context, "draw_x"), self._read(context, "draw_P").reshape(-1, 6, 6))

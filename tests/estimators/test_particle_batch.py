@@ -76,11 +76,10 @@ def test_the_steps_of_every_branch_are_what_they_should_be():
     assert np.isnan(outputs["x_hat"][6]).all()  # not live: no posterior
     live = after[4][:, 0]
     assert live.tolist() == [1, 1, 1, 1, 1, 0, 0, 1]
-    # A run not moving keeps its particles and weights; its prediction rows are NaN.
+    # A run not moving keeps its particles and weights, and the host's prediction.
     for run in (5, 6):
-        assert_array_equal(after[2][run], states[2][run])
-        assert_array_equal(after[3][run], states[3][run])
-        assert np.isnan(after[0][run]).all()
+        for group in (0, 1, 2, 3):
+            assert_array_equal(after[group][run], states[group][run])
     # Without a range the weights stand; reweighed runs resampled (equal weights after).
     assert_array_equal(after[3][2], states[3][2])
     assert np.ptp(after[3][0]) == 0.0 and after[3][0][0] == -math.log(COUNT)
