@@ -1,98 +1,141 @@
 """The particle cloud a raw-range filter carries where a Gaussian cannot describe the posterior.
 
 A component of :class:`~drake_uuv.estimators.range_filter.RangeFilter`: it declares its own
-discrete state, random input and cache entry on the filter that owns it, and its steps are
-:mod:`drake_uuv.models.particle_filter`'s regularised particle filter.
+discrete state, random input and cache entry on the filter that owns it (its *host*), and
+steps the clouds of a batch of B runs, N particles each, with the compiled kernels of
+:mod:`drake_uuv.models.particle_kernels` (the regularised particle filter of
+:mod:`drake_uuv.models.particle_filter`, fused into a few passes over each run's cloud).
+
+The batched API (what the host calls; B runs, N particles)
+----------------------------------------------------------
+``ParticleCloud(host, parameters, range_covariance, *, batch_size=B)`` declares on the host:
+
+- discrete state: the particles, ``B·N·6`` (run-major, then particle, then ``[q, ϑ]``: a
+  ``(B, N, 6)`` array), in the host's stored frame; their log weights ``B·N``; ``live``
+  ``B`` (1 where the run's cloud holds a particle phase's particles: only those are weighed);
+- random input ``particle_seed``, ``B`` uniforms: run i's value, from run i's own stream,
+  keys all of run i's draws of the step (:func:`~drake_uuv.models.particle_random.cloud_keys`),
+  so run i's particles are a function of its seed alone, whatever B and its place;
+- the cache entry ``particle posterior``.
+
+Each step the host calls:
+
+- :meth:`ParticleCloud.posterior` ``(context) -> (x, P, nis, log_weights)``: ``(B, 6)``,
+  ``(B, 6, 6)``, ``(B,)``, ``(B, N)``: each live run's cloud reweighted by its step's ranges
+  (relative frame; NIS NaN without a range; NaN rows for a run not live). Deterministic, no
+  random input: the filtered output may depend on it.
+- :meth:`ParticleCloud.advance` ``(context, filtered, discrete_state, draw=None,
+  weigh_draw=False, *, drawn=None, runs=None, write_prediction=True) -> (x, P)`` in the
+  periodic update: ``runs`` (``(B,)`` bool, default all) the runs whose cloud moves (the runs
+  in the particle phase next step; the others are marked not live, their particles kept);
+  ``filtered.status`` (``(B,)`` or one value) VALID where the posterior's weights replace the
+  predicted ones; ``draw = (x, P)`` (``(B, 6)``, ``(B, 6, 6)``, relative frame) the Gaussian
+  a run entering the particles draws its cloud from, for the runs of ``drawn`` (``(B,)``,
+  default every run of ``runs``), weighed by its step's ranges where ``weigh_draw`` (``(B,)``
+  or one bool). Returns the predicted clouds' mean and covariance, ``(B, 6)``, ``(B, 6, 6)``,
+  stored frame, NaN for the runs not moving; with ``write_prediction`` it also writes the
+  moving runs' as the host's prediction (``host.write_prediction(discrete_state, x, P,
+  runs=runs)``: the other runs keep what the host wrote).
+
+Accessors: :meth:`~ParticleCloud.particles` ``(B, N, 6)`` relative,
+:meth:`~ParticleCloud.log_weights` ``(B, N)``, :meth:`~ParticleCloud.set_particles`,
+:meth:`~ParticleCloud.live`. Memory: :func:`bytes_per_run` is what a batch holds per run
+(the state twice, the context's and the update's, and the posterior's log weights and
+weights), so a study can size its batches: at N = 5000, 0.64 MB a run; at N = 20 000,
+2.56 MB (B = 100: 256 MB).
+
+What the cloud reads of its host: ``model`` (A, B, W), ``window``, ``error_model``,
+``depends_on_measurement()``, ``ranges(context)`` (``z``, ``valid``, ``q_s``, ``exact``,
+``covariance(R, x)``), ``prior(context).x``, ``vehicle_motion`` (``state_ports``,
+``offset``, ``acceleration``), ``navigation_process_noise(context)`` and
+``write_prediction``; each value with a leading run axis, or one run's value, which a batch of
+one reads as such (:meth:`ParticleCloud._measurement`).
+
+Late ranges (the host's ping window) are stepped by numpy on one run's cloud
+(:class:`~drake_uuv.estimators.particle_window.LateRangeSteps`): a cloud with a window takes
+``batch_size`` 1 only.
 """
 
-import functools
 import math
-from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, DiscreteValues, ValueProducer
-from threadpoolctl import ThreadpoolController
 
 from drake_uuv.estimators.base import FilteredEstimate, RelativeStateEstimator
-from drake_uuv.estimators.timed_step import instant_ranges, instants
+from drake_uuv.estimators.particle_window import LateRangeSteps
 from drake_uuv.models.measurement import VALID
+from drake_uuv.models.motion import double_integrator
+from drake_uuv.models.particle_advance import cloud_advance
 from drake_uuv.models.particle_filter import (
     STATE_SIZE,
     ParticleFilterParameters,
     Workspace,
-    defensive_draw,
-    initial_particles,
-    normalised,
-    pf_predict,
-    range_terms,
-    resample_regularised,
-    weigh,
-    weighted_moments,
 )
-from drake_uuv.models.timing import transition
+from drake_uuv.models.particle_kernels import cloud_posterior, psd_factors
+from drake_uuv.models.particle_random import cloud_keys
+from drake_uuv.primitives.batch import batch_size_field
 from drake_uuv.primitives.random_input import declare_random_input
 
-# The uniform draw of the random port becomes a generator seed with this many bits (a double
-# in [0, 1) carries 53).
-_SEED_BITS = 53
+
+def bytes_per_run(count: int, window: int = 0, navigation_noise: bool = False) -> int:
+    """The bytes a batch holds per run for a cloud of ``count`` particles: its discrete state
+    (particles, log weights, live flag; with late ranges each window step's accelerations and,
+    with ``navigation_noise``, navigation noise) twice, the context's and the periodic
+    update's, and the posterior's log weights and weights (the cache). The kernels' work
+    arrays (about 12 N doubles) are the batch's, not per run."""
+    state = count * (STATE_SIZE + 1) + 1 + window * count * (3 + (6 if navigation_noise else 0))
+    return 8 * (2 * state + 2 * count)
 
 
-# A cloud drawn at the window's anchor is weighed at once by the window's ranges, which the
-# Gaussian it is drawn from never saw as raw ranges: where they fall in its tail (a linear
-# start is loose along the line of sight), N(x, P)'s own draws leave a handful of particles
-# with weight. Drawing from N(x, 2P), weighted back to N(x, P), populates the tail at a cost
-# of about half the effective sample size (realistic scenario, seed 9: 3 particles of 5000
-# kept their weight and the run stopped; with the widening it ran to the end).
-_HANDOVER_WIDENING = 2.0
+@dataclass(frozen=True)
+class CloudMeasurement:
+    """A step's ranges as the kernels read them, each with a leading run axis: the per-sonar
+    means ``z`` (B×2), which sonars returned ``used`` (B×2), the world baseline ``q_s`` (B×3),
+    the ranges' covariance ``R`` (B×2×2, with the error model's at the prior), the stored
+    frame's ``offset`` (B×6)."""
 
-_blas: list | None = None
-
-
-def _on_one_blas_thread(method: Callable) -> Callable:
-    """Runs ``method`` with BLAS on one thread. The cloud's products (6×N by N, 6×6 by 6×N,
-    N by N) are split over threads by OpenBLAS from about 10⁴ elements on, and waking the
-    threads costs more than the product, the more so on a busy machine: the realistic run
-    (20 000 particles) took 13 s of CPU with the default threads against 3 s with one. A
-    study's runner already holds one thread per worker; this covers a run of its own. The
-    BLAS libraries are found once and their thread counts read and set directly (about 3 µs
-    a call, where ``ThreadpoolController.limit`` inspects every library each time, 20 µs)."""
-
-    @functools.wraps(method)
-    def on_one_thread(*args, **kwargs):
-        global _blas
-        if _blas is None:  # after numpy's import, so that it finds numpy's BLAS
-            _blas = ThreadpoolController().select(user_api="blas").lib_controllers
-        changed = [(blas, n) for blas in _blas if (n := blas.num_threads) != 1]
-        for blas, _ in changed:
-            blas.set_num_threads(1)
-        try:
-            return method(*args, **kwargs)
-        finally:
-            for blas, n in changed:
-                blas.set_num_threads(n)
-
-    return on_one_thread
+    z: np.ndarray
+    used: np.ndarray
+    q_s: np.ndarray
+    R: np.ndarray
+    offset: np.ndarray
 
 
-class ParticleCloud:
-    """N weighted particles of the relative state, declared on ``host``.
+def _runs(value: object, batch_size: int, *shape: int) -> np.ndarray:
+    """A host's value as a new ``(B, *shape)`` array of doubles: a batch's, or one value for
+    every run (the kernels take contiguous arrays of one kind, so each compiles once)."""
+    array = np.asarray(value, dtype=float)
+    if array.size == batch_size * math.prod(shape):
+        return array.reshape(batch_size, *shape).copy()
+    return np.broadcast_to(array.reshape(-1, *shape), (batch_size, *shape)).copy()
 
-    The filtered estimate of a particle step is the weighted mean and covariance of the
+
+def _mask(value: object, batch_size: int) -> np.ndarray:
+    """A per-run flag (or one flag for every run) as a new ``(B,)`` bool array."""
+    array = np.asarray(value, dtype=bool).reshape(-1)
+    return array.copy() if array.size == batch_size else np.full(batch_size, array[0])
+
+
+class ParticleCloud(LateRangeSteps):
+    """N weighted particles of the relative state for each of B runs, declared on ``host``.
+
+    The filtered estimate of a particle step is each run's weighted mean and covariance of the
     predicted particles reweighted by the ranges' likelihood (:meth:`posterior`, a cache entry,
     deterministic in the inputs and the state); :meth:`advance`, called from the host's
-    periodic update, resamples, regularises and moves each particle by the model with its
-    own target acceleration, and writes the predicted cloud's mean and covariance as the
-    host's prediction. Randomness enters only through the host's random input port
-    ``particle_seed`` (one uniform draw per step, read only in the periodic update, where it
-    seeds that update's ``numpy.random.Generator``), so a run is reproducible from the
-    diagram's seed.
+    periodic update, resamples (systematic, when the effective sample size falls below the
+    threshold), regularises and moves each particle by the model with its own target
+    acceleration, and gives the predicted clouds' means and covariances. Randomness enters
+    only through the host's random input port ``particle_seed`` (one uniform per run and step,
+    read only in the periodic update), which keys the run's counter-based draws: a run is
+    reproducible from its seed, alone or in any batch. See the module notes for the API.
 
-    State on the host: the predicted particles (6N, state-major: the N values of ``q_x``, then
-    of ``q_y``, …) and their log weights (N). In the host's stored frame (see
-    :mod:`~drake_uuv.estimators.vehicle_motion`): with ``vehicle_motion: navigation`` the
-    particles are the target's, negated.
+    State on the host (per run): the predicted particles (N×6, particle-major) and their log
+    weights (N), in the host's stored frame (see :mod:`~drake_uuv.estimators.vehicle_motion`:
+    with ``vehicle_motion: navigation`` the particles are the target's, negated), and the
+    run's ``live`` flag.
     """
 
     def __init__(
@@ -100,19 +143,44 @@ class ParticleCloud:
         host: RelativeStateEstimator,
         parameters: ParticleFilterParameters,
         range_covariance: np.ndarray,
+        *,
+        batch_size: int = 1,
     ) -> None:
         if not isinstance(parameters, ParticleFilterParameters):
             raise ValueError(f"parameters: must be ParticleFilterParameters, got {parameters!r}")
+        self.batch_size = B = batch_size_field(batch_size)
         self._host = host
+        # A host that does not step batches yet reads one run's values (shapes only).
+        host_batch = getattr(host, "batch_size", None)
+        self._one_run_host = host_batch is None
+        if host_batch is not None and host_batch != B:
+            raise ValueError(f"batch_size: must be the host's ({host_batch}), got {B}")
+        A, Bu, W = host.model
+        self._time_step = float(A[0, 3])
+        expected = double_integrator(self._time_step)
+        if not (np.array_equal(A, expected[0]) and np.array_equal(Bu, expected[1])):
+            raise ValueError(
+                f"model: must be a double integrator, got A = {np.asarray(A).tolist()}"
+            )
+        self._W_factor = np.linalg.cholesky(np.asarray(W, dtype=float))
         self._parameters = parameters
-        self._R = range_covariance
+        self._R = np.asarray(range_covariance, dtype=float)
+        # Writable like every other array the kernels take: one compiled signature each.
+        self._R_runs = np.broadcast_to(self._R, (B, 2, 2)).copy()
+        self._no_z, self._no_q_s = np.zeros((B, 2)), np.zeros((B, 3))
+        self._no_used = np.zeros((B, 2), dtype=bool)
         n = parameters.count
-        self._particles_index = host.DeclareDiscreteState(np.zeros(STATE_SIZE * n))
-        self._log_weights_index = host.DeclareDiscreteState(np.full(n, -math.log(n)))
+        self._particles_index = host.DeclareDiscreteState(np.zeros(B * n * STATE_SIZE))
+        self._log_weights_index = host.DeclareDiscreteState(np.full(B * n, -math.log(n)))
+        self._live_index = host.DeclareDiscreteState(np.zeros(B))
         self._seed_port = declare_random_input(
-            host, "particle_seed", 1, RandomDistribution.kUniform
+            host, "particle_seed", 1, RandomDistribution.kUniform, batch_size=B
         )
         self._window = host.window
+        if self._window is not None and B != 1:
+            raise ValueError(
+                f"batch_size: a particle cloud with late ranges steps one run, got {B}"
+            )
         if self._window is not None:  # each particle's target acceleration over each step
             D = self._window.schedule.window
             self._accelerations_index = host.DeclareDiscreteState(np.zeros(D * 3 * n))
@@ -122,18 +190,25 @@ class ParticleCloud:
         if self._window is not None and host.error_model.active:
             D = self._window.schedule.window
             self._jitter_index = host.DeclareDiscreteState(np.zeros(D * 6 * n))
-        # The steps' work arrays (0-3), the relative particles (4) and, with late ranges, the
-        # particles of the window's steps (4 and 5 in turn).
-        self._work = Workspace(n, arrays=5 if self._window is None else 6)
-        self._W_factor = np.linalg.cholesky(np.asarray(host.model[2], dtype=float))
+        if self._window is not None:
+            # The late-range steps' work arrays (0-3) and the particles of the window's
+            # steps (4 and 5 in turn).
+            self._work = Workspace(n, arrays=6)
         # The posterior, shared by the filtered output and the periodic update: (x, P, nis,
-        # log weights, their weights or None, and with late ranges the first step's
-        # (log weights, acceleration) once the window is full, else None).
+        # log weights, weights, and with late ranges the first step's (log weights,
+        # acceleration) once the window is full, else None).
         self._posterior = host.DeclareCacheEntry(
             "particle posterior",
             ValueProducer(
                 allocate=AbstractValue.Make(
-                    (np.zeros(6), np.eye(6), math.nan, np.zeros(n), None, None)
+                    (
+                        np.zeros((B, 6)),
+                        np.zeros((B, 6, 6)),
+                        np.zeros(B),
+                        np.zeros((B, n)),
+                        np.zeros((B, n)),
+                        None,
+                    )
                 ).Clone,
                 calc=self._calc_posterior,
             ),
@@ -144,306 +219,145 @@ class ParticleCloud:
     def parameters(self) -> ParticleFilterParameters:
         return self._parameters
 
-    def particles(self, context: Context) -> np.ndarray:
-        """The predicted particles of this step as a 6×N array of relative states ``Υ``."""
-        return self._relative(context, None)
+    # ------------------------------------------------------------------------ the state
 
-    def _relative(self, context: Context, out: np.ndarray | None) -> np.ndarray:
-        """:meth:`particles`, in ``out`` when the stored frame is not the relative one."""
-        particles = self._stored(context)
-        motion = self._host.vehicle_motion
-        if motion.state_ports:  # stored less the vehicle's state: add X of the step
-            return np.add(particles, motion.offset(context)[:, np.newaxis], out=out)
-        return particles
-
-    def _stored(self, context: Context) -> np.ndarray:
-        """The predicted particles as stored (6×N, a view of the state)."""
+    def _stored_runs(self, context: Context) -> np.ndarray:
+        """The predicted particles as stored, ``(B, N, 6)`` (a read-only view of the state)."""
         value = context.get_discrete_state(self._particles_index).get_value()
-        return value.reshape(STATE_SIZE, self._parameters.count)
+        return value.reshape(self.batch_size, self._parameters.count, STATE_SIZE)
+
+    def _log_weights_runs(self, context: Context) -> np.ndarray:
+        value = context.get_discrete_state(self._log_weights_index).get_value()
+        return value.reshape(self.batch_size, self._parameters.count)
+
+    def particles(self, context: Context) -> np.ndarray:
+        """The predicted particles of this step, ``(B, N, 6)`` relative states ``Υ``."""
+        offset = _runs(self._host.vehicle_motion.offset(context), self.batch_size, STATE_SIZE)
+        return self._stored_runs(context) + offset[:, np.newaxis, :]
+
+    def log_weights(self, context: Context) -> np.ndarray:
+        """The predicted particles' log weights, ``(B, N)``."""
+        return self._log_weights_runs(context)
+
+    def live(self, context: Context) -> np.ndarray:
+        """Which runs' clouds hold a particle phase's particles, ``(B,)`` bool."""
+        return context.get_discrete_state(self._live_index).get_value() != 0.0
 
     def set_particles(
         self, context: Context, particles: np.ndarray, log_weights: np.ndarray
     ) -> None:
-        """Sets this step's predicted particles (6×N relative states) and log weights."""
-        particles = np.asarray(particles, dtype=float)
-        motion = self._host.vehicle_motion
-        if motion.state_ports:
-            particles = particles - motion.offset(context)[:, np.newaxis]
-        context.SetDiscreteState(self._particles_index, particles.ravel())
-        context.SetDiscreteState(self._log_weights_index, np.asarray(log_weights, dtype=float))
+        """Sets this step's predicted particles (relative states, ``(B, N, 6)``; one run's
+        ``(N, 6)`` for a batch of one) and log weights (``(B, N)`` or ``(N,)``); the runs
+        become live."""
+        B, n = self.batch_size, self._parameters.count
+        particles = np.asarray(particles, dtype=float).reshape(B, n, STATE_SIZE)
+        offset = _runs(self._host.vehicle_motion.offset(context), B, STATE_SIZE)
+        context.SetDiscreteState(self._particles_index, (particles - offset[:, None, :]).ravel())
+        context.SetDiscreteState(
+            self._log_weights_index, np.asarray(log_weights, dtype=float).reshape(B * n)
+        )
+        context.SetDiscreteState(self._live_index, np.ones(B))
 
-    def log_weights(self, context: Context) -> np.ndarray:
-        """The predicted particles' log weights (N)."""
-        return context.get_discrete_state(self._log_weights_index).get_value()
+    # ------------------------------------------------------------------------ each step
 
-    def posterior(self, context: Context) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
-        """``(x, P, nis, log_weights)`` of this step's ranges (:func:`pf_update`; with late
-        ranges, of the window's and this tick's ranges)."""
-        return self._posterior.Eval(context)[:4]
+    def _measurement(self, context: Context, R: np.ndarray | None = None) -> CloudMeasurement:
+        """This step's ranges, per run (``R``: the ranges' covariance for every run; default
+        the sonars' plus the error model's at the prior)."""
+        host, B = self._host, self.batch_size
+        ranges = host.ranges(context)
+        if R is None:
+            R = self._R_runs
+            if not ranges.exact:
+                R = _runs(ranges.covariance(self._R, host.prior(context).x), B, 2, 2)
+        valid = np.asarray(ranges.valid, dtype=bool).reshape(B, 2).copy()
+        return CloudMeasurement(
+            z=_runs(ranges.z, B, 2),
+            used=valid,
+            q_s=_runs(ranges.q_s, B, 3),
+            R=R,
+            offset=_runs(host.vehicle_motion.offset(context), B, STATE_SIZE),
+        )
 
-    @_on_one_blas_thread
+    def posterior(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(x, P, nis, log_weights)`` of this step's ranges, each run's (see the module
+        notes; with late ranges, of the window's and this tick's ranges)."""
+        x, P, nis, log_weights, _, _ = self._posterior.Eval(context)
+        if self._one_run_host:
+            return x[0], P[0], float(nis[0]), log_weights[0]
+        return x, P, nis, log_weights
+
     def _calc_posterior(self, context: Context, value: AbstractValue) -> None:
         if self._window is not None:
-            value.set_value(self._window_posterior(context))
+            x, P, nis, log_weights, first = self._window_posterior(context)
+            value.set_value((x[None], P[None], np.array([nis]), log_weights[None], None, first))
             return
+        m = self._measurement(context)
+        # Written in place: the cache entry owns its arrays (B·N each, allocated once per
+        # context; a fresh pair each step would fault in and zero their pages every step).
+        x, P, nis, log_posterior, weights, _ = value.get_mutable_value()
+        cloud_posterior(
+            self._stored_runs(context), self._log_weights_runs(context), m.offset, m.z, m.used,
+            m.q_s, m.R, self.live(context), x, P, nis, log_posterior, weights,
+        )  # fmt: skip
 
-        ranges = self._host.ranges(context)
-        particles = self._relative(context, self._work[4])
-        R = self._R if ranges.exact else ranges.covariance(self._R, self._host.prior(context).x)
-        # pf_update, keeping the weights for the periodic update's resampling.
-        terms = range_terms(particles, ranges.z, ranges.q_s, R, ranges.sonars, self._work)
-        nis, log_weights = weigh(self.log_weights(context), *terms, self._work)
-        weights = np.exp(log_weights)
-        x, P = weighted_moments(particles, weights, self._work)
-        value.set_value((x, P, nis, log_weights, weights, None))
-
-    # ----------------------------------------------------------------------- late ranges
-
-    def accelerations(self, context: Context) -> np.ndarray:
-        """Each particle's target acceleration over each window step (D×3×N)."""
-        D = self._window.schedule.window
-        value = context.get_discrete_state(self._accelerations_index).get_value()
-        return value.reshape(D, 3, self._parameters.count)
-
-    def jitter(self, context: Context) -> np.ndarray | None:
-        """Each particle's draw of the navigation's process noise over each window step
-        (D×6×N; None without modelled navigation errors or late ranges)."""
-        if self._jitter_index is None:
-            return None
-        D = self._window.schedule.window
-        value = context.get_discrete_state(self._jitter_index).get_value()
-        return value.reshape(D, 6, self._parameters.count)
-
-    def _jitter_root(self, context: Context) -> np.ndarray | None:
-        """A root of ``Q_nav``, what the modelled navigation errors add over the step from this
-        tick (the Gaussian filters add it to their Q); None when they add nothing."""
-        Q = self._host.navigation_process_noise(context)
-        if Q is None:
-            return None
-        # Q_nav has rank 3 (an acceleration's, or the position's walk): a symmetric root.
-        values, vectors = np.linalg.eigh(Q)
-        return vectors * np.sqrt(np.clip(values, 0.0, None))
-
-    def _draw_jitter(
-        self, root: np.ndarray | None, rng: np.random.Generator, out: np.ndarray | None = None
-    ) -> np.ndarray | None:
-        """Per particle, a draw of ``N(0, Q_nav)`` from its ``root`` (zero without one, in
-        ``out``; None without ``out``)."""
-        if root is None:
-            if out is not None:
-                out[...] = 0.0
-            return out
-        return np.matmul(root, rng.standard_normal((6, self._parameters.count)), out=out)
-
-    def _window_steps(self, context: Context):
-        host = self._host
-        samples = host.GetInputPort("range_samples").Eval(context)
-        status = host.GetInputPort("sonar_status").Eval(context)
-        steps, _ = self._window.steps(context, samples.reshape(2, -1), status)
-        return steps
-
-    def _move(
-        self, particles: np.ndarray, u: np.ndarray, G: np.ndarray, c: np.ndarray, out: np.ndarray
-    ) -> np.ndarray:
-        """``G [xᵢ; uᵢ] + c`` of every particle (its state at a ping or the next tick), in
-        ``out``."""
-        moved = np.matmul(G[:, :STATE_SIZE], particles, out=out)
-        moved += np.matmul(G[:, STATE_SIZE:], u, out=self._work[3])
-        moved += c[:, np.newaxis]
-        return moved
-
-    def _step(
-        self,
-        particles: np.ndarray,
-        log_weights: np.ndarray,
-        u: np.ndarray,
-        step,
-        out: np.ndarray,
-        jitter: np.ndarray | None = None,
-    ) -> tuple[np.ndarray, np.ndarray, list[float]]:
-        """The stored-frame particles at a step's tick (plus their ``jitter``, the navigation's
-        process noise), reweighted by its arrived ranges at their ping times along each
-        particle's path, and moved to the next tick (in ``out``)."""
-        host = self._host
-        if jitter is not None:
-            particles = particles + jitter
-        t = host.time_step
-        a = np.zeros(3) if host.error_model.navigated_motion else step.acceleration
-        new_nis = []
-        for instant in instants(step, paired=False):
-            G, B = transition(instant.tau)
-            moved = self._move(particles, u, G, B @ a, self._work[2])
-            if host.error_model.navigated_motion:
-                moved += step.vehicle(instant.tau, t)[:, np.newaxis]
-            q_s = step.attitude(instant.tau, t) @ host.baseline
-            ranges = instant_ranges(host, instant, q_s, step)
-            prior = normalised(log_weights)  # for the error model's mean and the weighing
-            R = self._R if ranges.exact else ranges.covariance(self._R, moved @ prior)
-            terms = range_terms(moved, ranges.z, q_s, R, ranges.sonars, self._work)
-            nis, log_weights = weigh(log_weights, *terms, self._work, prior)
-            if np.any(step.new[instant.sonars]):
-                new_nis.append(nis)
-        G, B = transition(t)
-        return self._move(particles, u, G, B @ a, out), log_weights, new_nis
-
-    def _window_posterior(self, context: Context) -> tuple:
-        """``(x, P, nis, log_weights, None, first)`` at this tick from the anchor's cloud
-        stepped through the window, then this tick's ranges; ``first`` the first step's log
-        weights and acceleration when its ranges have all arrived (the periodic update
-        resamples with them)."""
-        host = self._host
-        work = self._work
-        j = self._window.tick(context)
-        D = self._window.schedule.window
-        particles = self._stored(context)
-        log_weights = self.log_weights(context)
-        u = self.accelerations(context)
-        jitter = self.jitter(context)
-        nis_total, first = [], None
-        for i, step in enumerate(self._window_steps(context)):
-            slot = step.step - (j - D)
-            particles, log_weights, new_nis = self._step(
-                particles, log_weights, u[slot], step, work[4 + i % 2],
-                None if jitter is None else jitter[slot],
-            )  # fmt: skip
-            nis_total += new_nis
-            if first is None and j >= D:
-                first = (log_weights, step.acceleration)
-        offset = host.vehicle_motion.offset(context)
-        relative = np.add(particles, offset[:, np.newaxis], out=work[2])
-        ranges = host.ranges(context)  # this tick's own pings (no latency, at the tick)
-        if ranges.valid.any():
-            prior = normalised(log_weights)
-            R = self._R if ranges.exact else ranges.covariance(self._R, relative @ prior)
-            terms = range_terms(relative, ranges.z, ranges.q_s, R, ranges.sonars, work)
-            nis, log_weights = weigh(log_weights, *terms, work, prior)
-            nis_total.append(nis)
-        x, P = weighted_moments(relative, normalised(log_weights), work)
-        nis = float(sum(nis_total)) if nis_total else math.nan
-        return x, P, nis, log_weights, None, first
-
-    @_on_one_blas_thread
-    def advance_window(
-        self,
-        context: Context,
-        discrete_state: DiscreteValues,
-        draw: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> None:
-        """The periodic update with late ranges: the anchor's cloud moved one step on (its
-        oldest step's ranges weighed, resampled and regularised, moved by each particle's
-        own acceleration) or drawn from ``N(draw)`` (stored frame, at the new anchor); a new
-        acceleration per particle for the window's newest step."""
-        host = self._host
-        work = self._work
-        u_seed = float(self._seed_port.Eval(context)[0])
-        rng = np.random.default_rng(int(u_seed * 2.0**_SEED_BITS))
-        count = self._parameters.count
-        D = self._window.schedule.window
-        L = self._W_factor
-        out = discrete_state.get_mutable_value(self._particles_index).reshape(STATE_SIZE, count)
-        u_next = discrete_state.get_mutable_value(self._accelerations_index).reshape(D, 3, count)
-        jitter_next = root = None
-        if self._jitter_index is not None:
-            jitter_next = discrete_state.get_mutable_value(self._jitter_index).reshape(D, 6, count)
-            root = self._jitter_root(context)
-        if draw is not None:
-            particles, log_weights = defensive_draw(
-                draw[0], draw[1], count, rng, _HANDOVER_WIDENING
-            )
-            out[...] = particles
-            for k in range(D):
-                np.matmul(L, rng.standard_normal((3, count)), out=u_next[k])
-                if jitter_next is not None:
-                    self._draw_jitter(root, rng, jitter_next[k])
-        else:
-            particles = self._stored(context)
-            log_weights = self.log_weights(context)
-            u = self.accelerations(context)
-            jitter = self.jitter(context)
-            first = self._posterior.Eval(context)[5]
-            chosen = None
-            if first is None:
-                out[...] = particles
-            else:  # the oldest step's ranges have all arrived: the posterior weighed them
-                weighed, acceleration = first
-                particles, log_weights, chosen = resample_regularised(
-                    particles, weighed, rng, self._parameters, work=work
-                )
-                u_first = u[0]
-                if chosen is not None:  # each particle's path follows it
-                    u_first = np.take(u_first, chosen, axis=1, out=work[1][:3], mode="clip")
-                if jitter is not None:  # and its draw of the navigation's noise
-                    particles = particles + (jitter[0] if chosen is None else jitter[0][:, chosen])
-                a = np.zeros(3) if host.error_model.navigated_motion else acceleration
-                G, B = transition(host.time_step)
-                self._move(particles, u_first, G, B @ a, out)
-            _shift_window(u, chosen, u_next)
-            np.matmul(L, rng.standard_normal(out=work[3][:3]), out=u_next[-1])
-            if jitter is not None:
-                _shift_window(jitter, chosen, jitter_next)
-                self._draw_jitter(root, rng, jitter_next[-1])
-        x, P = weighted_moments(out, normalised(log_weights), work)
-        host.write_prediction(discrete_state, x, P)
-        discrete_state.set_value(self._log_weights_index, log_weights)
-
-    @_on_one_blas_thread
     def advance(
         self,
         context: Context,
         filtered: FilteredEstimate,
         discrete_state: DiscreteValues,
         draw: tuple[np.ndarray, np.ndarray] | None = None,
-        weigh_draw: bool = False,
-    ) -> None:
-        """The periodic update: the particles of this step (drawn from ``N(draw)``, weighed by
-        this step's ranges with ``weigh_draw``; else reweighted by this step's ranges when
-        ``filtered`` applied an update), resampled, regularised and predicted; the host's
-        prediction becomes the predicted cloud's mean and covariance."""
-        host = self._host
-        work = self._work
-        u = float(self._seed_port.Eval(context)[0])
-        rng = np.random.default_rng(int(u * 2.0**_SEED_BITS))
-        count = self._parameters.count
-        weights = moments = None
-        if draw is not None:
-            particles = initial_particles(draw[0], draw[1], count, rng)
-            log_weights = np.full(count, -math.log(count))
-            if weigh_draw:
-                ranges = host.ranges(context)
-                terms = range_terms(particles, ranges.z, ranges.q_s, self._R, ranges.sonars, work)
-                log_weights = weigh(log_weights, *terms, work)[1]
+        weigh_draw: bool | np.ndarray = False,
+        *,
+        drawn: np.ndarray | None = None,
+        runs: np.ndarray | None = None,
+        write_prediction: bool = True,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The periodic update of the runs in ``runs``: each run's particles of this step
+        (drawn from ``N(draw)`` for the runs of ``drawn``, weighed by this step's ranges where
+        ``weigh_draw``; else reweighted by this step's ranges where ``filtered`` applied an
+        update), resampled, regularised and predicted. Returns the predicted clouds' means
+        and covariances (stored frame; NaN for runs not moving), written as the host's
+        prediction with ``write_prediction``. Shapes: see the module notes."""
+        host, B, n = self._host, self.batch_size, self._parameters.count
+        moving = np.ones(B, dtype=bool) if runs is None else _mask(runs, B)
+        if draw is None:
+            drawn = np.zeros(B, dtype=bool)
+            draw_x, draw_P = np.zeros((B, 6)), np.zeros((B, 6, 6))
         else:
-            particles = self._relative(context, work[4])
-            if filtered.status == VALID:  # this step's ranges reweight the cloud
-                x, P, _, log_weights, weights, _ = self._posterior.Eval(context)
-                moments = (x, P)
-            else:  # no update, or one the gate rejected: the prediction's weights stand
-                log_weights = self.log_weights(context)
-        motion = host.vehicle_motion
-        if motion.state_ports:  # back to the stored frame: the target's particles, negated
-            particles = np.subtract(particles, motion.offset(context)[:, np.newaxis], out=work[4])
-            moments = None  # the posterior's are of the relative particles
-        A, B, W = host.model
-        out = discrete_state.get_mutable_value(self._particles_index).reshape(STATE_SIZE, count)
-        _, log_weights, resampled = pf_predict(
-            particles, log_weights, motion.acceleration(context), A, B, W, rng,
-            self._parameters, weights=weights, moments=moments, work=work, out=out,
-            W_factor=self._W_factor,
+            drawn = moving if drawn is None else _mask(drawn, B) & moving
+            draw_x, draw_P = _runs(draw[0], B, STATE_SIZE), _runs(draw[1], B, 6, 6)
+        weighed = _mask(weigh_draw, B) & drawn
+        reweigh = _mask(np.asarray(filtered.status) == VALID, B) & moving & ~drawn
+        if reweigh.any():  # this step's ranges reweight those runs' clouds
+            posterior = self._posterior.Eval(context)
+        else:  # not read
+            posterior = (np.empty((B, 6)), np.empty((B, 6, 6)), None, *np.empty((2, B, n)))
+        if weighed.any():  # a draw is weighed by this step's ranges with the sonars' R
+            m = self._measurement(context, self._R_runs)
+        else:  # only the offset is read
+            offset = _runs(host.vehicle_motion.offset(context), B, STATE_SIZE)
+            m = CloudMeasurement(self._no_z, self._no_used, self._no_q_s, self._R_runs, offset)
+        keys = cloud_keys(np.array(self._seed_port.Eval(context), dtype=float))
+        acceleration = _runs(host.vehicle_motion.acceleration(context), B, 3)
+        Q_nav = host.navigation_process_noise(context)
+        if Q_nav is None:
+            jitter = np.zeros((B, 6, 6))
+        else:  # the modelled navigation errors' process noise, a factor per run
+            jitter = psd_factors(_runs(Q_nav, B, 6, 6))
+        out = discrete_state.get_mutable_value(self._particles_index).reshape(B, n, STATE_SIZE)
+        out_log_weights = discrete_state.get_mutable_value(self._log_weights_index).reshape(B, n)
+        x, P = np.empty((B, 6)), np.empty((B, 6, 6))
+        cloud_advance(
+            self._stored_runs(context), self._log_weights_runs(context), reweigh,
+            posterior[3], posterior[4], posterior[0], posterior[1], keys, moving, drawn, draw_x,
+            draw_P, weighed, m.offset, m.z, m.used, m.q_s, m.R, self._time_step, acceleration,
+            self._W_factor, jitter, self._parameters.resample_threshold,
+            self._parameters.bandwidth, out, out_log_weights, x, P,
         )  # fmt: skip
-        jitter = self._draw_jitter(self._jitter_root(context), rng)
-        if jitter is not None:  # the modelled navigation errors' process noise
-            out += jitter
-        if resampled or weights is None:
-            weights = np.exp(log_weights)
-        x, P = weighted_moments(out, weights, work)
-        host.write_prediction(discrete_state, x, P)
-        discrete_state.set_value(self._log_weights_index, log_weights)
-
-
-def _shift_window(slots: np.ndarray, chosen: np.ndarray | None, out: np.ndarray) -> None:
-    """The window's per-particle slots (D×·×N) moved one step on into ``out[:-1]``, each
-    particle's following it through a resampling (``chosen``)."""
-    if chosen is None:
-        out[:-1] = slots[1:]
-    else:
-        np.take(slots[1:], chosen, axis=2, out=out[:-1], mode="clip")
+        discrete_state.set_value(self._live_index, moving.astype(float))
+        if write_prediction:
+            if self._one_run_host:
+                host.write_prediction(discrete_state, x[0], P[0])
+            else:  # the moving runs' rows only: the others keep the host's own
+                host.write_prediction(discrete_state, x, P, runs=moving)
+        return x, P

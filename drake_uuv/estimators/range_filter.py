@@ -129,12 +129,14 @@ class RangeFilter(RelativeStateEstimator):
         self.DeclareStateOutputPort("estimator_phase", self._phase_index)
         self._cloud = None
         if not self._gaussian or self._policy.particle_bridge:
-            if B != 1:
+            if B != 1 and self.window is not None:
                 raise ValueError(
-                    "batch_size: a filter that may carry particles steps one run at a time "
-                    f"for now, got {B}"
+                    "batch_size: a filter that may carry particles with late ranges steps one "
+                    f"run at a time for now, got {B}"
                 )
-            self._cloud = ParticleCloud(_RunOfOne(self), config.particle_parameters(), self._R)
+            # Late ranges: the cloud steps one run through the window's single-run view.
+            host = self if self.window is None else _RunOfOne(self)
+            self._cloud = ParticleCloud(host, config.particle_parameters(), self._R, batch_size=B)
         self._dof_linear = np.ones(B, dtype=np.intp)
 
     @property
@@ -217,11 +219,9 @@ class RangeFilter(RelativeStateEstimator):
         window's ranges at their ping times, then this tick's (one run)."""
         if self.window is None or self.phase(context) is not Phase.PARTICLE:
             return None
-        x, P, nis, _ = self._cloud.posterior(context)
-        status = VALID if math.isfinite(nis) else self.arrival_status(context)[0]
-        return FilteredEstimate(
-            x[np.newaxis], P[np.newaxis], np.array([float(status)]), np.array([nis])
-        )
+        x, P, nis, _ = self._cloud.posterior(context)  # a batch of one
+        status = VALID if math.isfinite(nis[0]) else self.arrival_status(context)[0]
+        return FilteredEstimate(x, P, np.array([float(status)]), nis)
 
     def step_belief(self, context: Context, x: np.ndarray, P: np.ndarray, step) -> StepOutcome:
         """In the particle phase the particles take the ranges: the Gaussian summary only
@@ -323,14 +323,14 @@ class RangeFilter(RelativeStateEstimator):
         ``N(draw_x, draw_P)`` ((B, 6), (B, 6, 6)), weighed by the step's ranges where
         ``weigh`` (B); the others move their particles on. The cloud steps one run for now:
         this maps run 0 onto its calls (a batched cloud takes these arrays as they are)."""
-        if not runs[0]:
-            return
-        draw = (draw_x[0], draw_P[0]) if drawn[0] else None
         if self.window is not None:
-            self._cloud.advance_window(context, discrete_state, draw)
+            if runs[0]:
+                draw = (draw_x[0], draw_P[0]) if drawn[0] else None
+                self._cloud.advance_window(context, discrete_state, draw)
             return
-        one = FilteredEstimate(filtered.x[0], filtered.P[0], filtered.status[0], filtered.nis[0])
-        self._cloud.advance(context, one, discrete_state, draw, weigh_draw=bool(weigh[0]))
+        self._cloud.advance(
+            context, filtered, discrete_state, (draw_x, draw_P), weigh, drawn=drawn, runs=runs
+        )
 
 
 class _RunOfOne:

@@ -150,11 +150,20 @@ def test_the_batch_mixes_phases_gates_and_drops() -> None:
     assert set(status.tolist()) & {float(DROPPED), float(OUT_OF_BEAM)}
 
 
-def test_batch_size_is_checked_and_particles_take_one_run() -> None:
+def test_batch_size_is_checked_and_particles_with_late_ranges_take_one_run() -> None:
+    """A filter that may carry particles steps a batch with the paper's timing; with late
+    ranges its cloud still steps one run (the window's particle path is not batched)."""
     with pytest.raises(ValueError, match=r"^batch_size: must be an integer ≥ 1, got 0"):
         maker("kf")(0)
-    with pytest.raises(ValueError, match=r"^batch_size: a filter that may carry particles"):
-        RangeFilter(Ekf(), setting=setting(False), batch_size=2)
+    assert RangeFilter(Ekf(), setting=setting(False), batch_size=2).batch_size == 2
+    timed = EstimatorSetting(
+        time_step=T, acceleration_covariance=W, noise_variances=ETA_UNEQUAL,
+        samples_per_step=F, baseline_B=B_BODY, ping_schedule=SCHEDULE,
+    )  # fmt: skip
+    with pytest.raises(
+        ValueError, match=r"^batch_size: a filter that may carry particles with late"
+    ):
+        RangeFilter(Ekf(), setting=timed, batch_size=2)
 
 
 SCHEDULE = PingSchedule(T, (0.1, 0.3), 0.6)  # both ranges two ticks late: D = 2

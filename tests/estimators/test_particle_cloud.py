@@ -1,6 +1,7 @@
-"""The particle filter's cloud alone: the filtered estimate is the numpy reweighting and does
-not read the random port; the periodic update is the numpy prediction seeded by it; the cloud
-is drawn from the linear KF at the hand-over; a run is reproducible from the diagram's seed."""
+"""The particle filter's cloud in a raw-range filter (one run): the filtered estimate is the
+numpy reweighting (to rounding) and does not read the random port; the periodic update is the
+numpy steps with the draws the port's value keys; the cloud is drawn from the linear KF at the
+hand-over; a run is reproducible from the diagram's seed. Batches: test_particle_batch.py."""
 
 import math
 from dataclasses import replace
@@ -20,7 +21,7 @@ from pydrake.systems.primitives import (
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from drake_uuv.estimators import RangeFilter
-from drake_uuv.estimators.particle_cloud import _on_one_blas_thread
+from drake_uuv.estimators.particle_window import _on_one_blas_thread
 from drake_uuv.models.handover import Phase
 from drake_uuv.models.measurement import DROPPED, VALID
 from drake_uuv.models.motion import process_noise_covariance
@@ -28,13 +29,14 @@ from drake_uuv.models.navigation_noise import NavigationErrors, commanded_accele
 from drake_uuv.models.particle_filter import (
     ParticleFilterParameters,
     initial_particles,
-    pf_predict,
     pf_update,
     weighted_moments,
 )
+from drake_uuv.models.particle_kernels import psd_factors
 from drake_uuv.scenario import ParticleFilter
 from drake_uuv.testing import after_update
 from tests.conftest import X0, T, W
+from tests.estimators.cloud_host import reference_step
 from tests.estimators.range_filters import (
     A_W,
     COUNT,
@@ -50,19 +52,19 @@ from tests.estimators.range_filters import (
     inputs,
     make,
     means,
-    seed_rng,
     uniform_log_weights,
 )
 
 PARAMS = ParticleFilterParameters(count=COUNT)
+MODEL = (A, B, W)
 
 
 def particle_context(seed_value: float = 0.25, **overrides):
     """A particle filter in its particle phase, holding a seeded cloud about X0 with unequal
-    weights."""
+    weights (particles N×6)."""
     system = make("pf")
     context = context_of(system, seed_value=seed_value, **overrides)
-    particles = initial_particles(X0, P0, COUNT, np.random.default_rng(1))
+    particles = initial_particles(X0, P0, COUNT, np.random.default_rng(1)).T
     log_w = -np.log(np.random.default_rng(2).uniform(1.0, 2.0, COUNT))
     system.set_phase(context, Phase.PARTICLE, 3)
     system.cloud.set_particles(context, particles, log_w)
@@ -71,39 +73,45 @@ def particle_context(seed_value: float = 0.25, **overrides):
 
 def test_output_is_the_numpy_update_and_ignores_the_random_port():
     system, context, particles, log_w = particle_context()
-    x, P, nis, _ = pf_update(particles, log_w, means(), Q_S, R)
+    x, P, nis, log_post = pf_update(particles.T, log_w, means(), Q_S, R)
     x_hat, P_hat, status, nis_hat = filtered(system, context)
-    assert_array_equal(x_hat, x)
-    assert_array_equal(P_hat, P)
-    assert (status, nis_hat) == (VALID, nis)
+    # The kernel's sums run in another order than numpy's: equal to rounding.
+    assert_allclose(x_hat, x, rtol=1e-12, atol=1e-14)
+    assert_allclose(P_hat, P, rtol=1e-10, atol=1e-15)
+    assert status == VALID and nis_hat == pytest.approx(nis, rel=1e-10)
+    assert_allclose(np.reshape(system.cloud.posterior(context)[3], -1), log_post, rtol=1e-12, atol=1e-12)
     system.GetInputPort("particle_seed").FixValue(context, [0.75])
-    assert_array_equal(filtered(system, context)[0], x)
+    assert_array_equal(filtered(system, context)[0], x_hat)
 
 
-def test_update_is_the_numpy_prediction_seeded_by_the_port():
+def test_update_is_the_reference_step_seeded_by_the_port():
+    """The periodic update is :func:`reference_step` (the numpy steps) with the kernel's own
+    draws for the port's value: equal to rounding. (Before the batch, the draws came from a
+    numpy generator seeded by the port; the numbers changed with the counter-based draws.)"""
     system, context, particles, log_w = particle_context(seed_value=0.25)
-    *_, log_post = pf_update(particles, log_w, means(), Q_S, R)
-    moved, log_next, _ = pf_predict(particles, log_post, A_W, A, B, W, seed_rng(0.25), PARAMS)
+    *_, log_post = pf_update(particles.T, log_w, means(), Q_S, R)
+    moved, log_next = reference_step(particles, log_post, 0.25, PARAMS, A_W, model=MODEL)
     after = after_update(system, context)
-    assert_array_equal(system.cloud.particles(after), moved)
-    assert_array_equal(system.cloud.log_weights(after), log_next)
-    x, P = weighted_moments(moved, np.exp(log_next))
-    assert_allclose(system.prior(after).x[0], x, rtol=1e-14)
-    assert_allclose(system.prior(after).P[0], P, rtol=1e-12)
+    assert_allclose(system.cloud.particles(after)[0], moved, rtol=1e-12, atol=1e-12)
+    assert_allclose(system.cloud.log_weights(after)[0], log_next, rtol=1e-12, atol=1e-12)
+    x, P = weighted_moments(moved.T, np.exp(log_next))
+    assert_allclose(system.prior(after).x[0], x, rtol=1e-12)
+    assert_allclose(system.prior(after).P[0], P, rtol=1e-10)
     # Same draw, same cloud; another draw, another cloud.
-    assert_array_equal(system.cloud.particles(after_update(system, context)), moved)
+    again = system.cloud.particles(after_update(system, context))
+    assert_array_equal(again, system.cloud.particles(after))
     system.GetInputPort("particle_seed").FixValue(context, [0.26])
-    assert not np.array_equal(system.cloud.particles(after_update(system, context)), moved)
+    assert not np.array_equal(system.cloud.particles(after_update(system, context)), again)
 
 
 def test_without_a_measurement_the_predicted_weights_stand():
     system, context, particles, log_w = particle_context(
         sonar_status=[DROPPED, DROPPED], range_samples=np.full(2 * F, np.nan)
     )
-    moved, log_next, _ = pf_predict(particles, log_w, A_W, A, B, W, seed_rng(0.25), PARAMS)
+    moved, log_next = reference_step(particles, log_w, 0.25, PARAMS, A_W, model=MODEL)
     after = after_update(system, context)
-    assert_array_equal(system.cloud.particles(after), moved)
-    assert_array_equal(system.cloud.log_weights(after), log_next)
+    assert_allclose(system.cloud.particles(after)[0], moved, rtol=1e-12, atol=1e-12)
+    assert_array_equal(system.cloud.log_weights(after)[0], log_w)  # no resampling: carried
 
 
 def test_the_cloud_is_drawn_from_the_kf_at_the_hand_over():
@@ -111,13 +119,14 @@ def test_the_cloud_is_drawn_from_the_kf_at_the_hand_over():
     context = context_of(system)
     system.start.set_prior_share(context, 0.01 * P0)
     x, P, *_ = filtered(system, context)
-    rng = seed_rng()
-    drawn = initial_particles(x, P, COUNT, rng)
-    moved, log_next, _ = pf_predict(drawn, uniform_log_weights(), A_W, A, B, W, rng, PARAMS)
+    drawn, log_next = reference_step(
+        None, None, 0.5, PARAMS, A_W, model=MODEL, draw=(x, P)
+    )  # fmt: skip
     after = after_update(system, context)
     assert system.phase(after) is Phase.PARTICLE and system.linear_updates(after) == 1
-    assert_array_equal(system.cloud.particles(after), moved)
-    assert_array_equal(system.cloud.log_weights(after), log_next)
+    assert_allclose(system.cloud.particles(after)[0], drawn, rtol=1e-12, atol=1e-12)
+    assert_array_equal(system.cloud.log_weights(after)[0], log_next)
+    assert system.cloud.live(after).tolist() == [True]
 
 
 def test_navigation_particles_are_the_targets_negated_plus_the_vehicle():
@@ -135,25 +144,23 @@ def test_navigation_particles_are_the_targets_negated_plus_the_vehicle():
     context = system.CreateDefaultContext()
     for name, value in values.items():
         system.GetInputPort(name).FixValue(context, np.asarray(value, dtype=float))
-    particles = initial_particles(X0, P0, COUNT, np.random.default_rng(1))
-    system.set_phase(context, Phase.PARTICLE, 3)
+    particles = initial_particles(X0, P0, COUNT, np.random.default_rng(1)).T
     system.cloud.set_particles(context, particles, uniform_log_weights())
-    assert_allclose(system.cloud.particles(context), particles, rtol=1e-14, atol=1e-14)
-    *_, log_post = pf_update(particles, uniform_log_weights(), means(), Q_S, R)
-    target, log_next, _ = pf_predict(
-        particles - X[:, None], log_post, np.zeros(3), A, B, W, seed_rng(), PARAMS
-    )
+    system.set_phase(context, Phase.PARTICLE, 3)
+    assert_allclose(system.cloud.particles(context)[0], particles, rtol=1e-14, atol=1e-14)
+    *_, log_post = pf_update(particles.T, uniform_log_weights(), means(), Q_S, R)
+    target, _ = reference_step(particles - X, log_post, 0.5, PARAMS, np.zeros(3), model=MODEL)
     after = after_update(system, context)
     X_next = X + 0.1
     system.GetInputPort("p_WU_nav").FixValue(after, X_next[:3])
     system.GetInputPort("v_WU_nav").FixValue(after, X_next[3:])
-    assert_allclose(system.cloud.particles(after), target + X_next[:, None], rtol=1e-12, atol=1e-14)
+    assert_allclose(system.cloud.particles(after)[0], target + X_next, rtol=1e-12, atol=1e-12)
 
 
 def test_with_navigation_errors_each_particle_draws_their_process_noise():
     """The Gaussian filters add ``Q_nav`` (the navigation's process noise at this tick) to
-    their Q: the cloud's prediction is the numpy prediction plus a draw of ``N(0, Q_nav)`` per
-    particle, from the same seeded stream after it."""
+    their Q: the cloud's prediction is the reference step plus a draw of ``N(0, Q_nav)`` per
+    particle, from the particle's own slots."""
     errors = NavigationErrors(attitude_noise=np.radians([1.0, 1.0, 3.0]))
     config = ParticleFilter(
         initial_estimate=X0.tolist(), initial_covariance=P0.tolist(), particle_count=COUNT,
@@ -161,20 +168,19 @@ def test_with_navigation_errors_each_particle_draws_their_process_noise():
     system = RangeFilter(config, setting=replace(SETTING, navigation_errors=errors))
     context = context_of(system, sonar_status=[DROPPED, DROPPED],
                          range_samples=np.full(2 * F, np.nan))  # fmt: skip
-    particles = initial_particles(X0, P0, COUNT, np.random.default_rng(1))
+    particles = initial_particles(X0, P0, COUNT, np.random.default_rng(1)).T
     system.set_phase(context, Phase.PARTICLE, 3)
     system.cloud.set_particles(context, particles, uniform_log_weights())
-    rng = seed_rng()
-    moved, log_next, _ = pf_predict(particles, uniform_log_weights(), A_W, A, B, W, rng, PARAMS)
     Q_nav = process_noise_covariance(commanded_acceleration_noise(A_W, np.radians(
         np.diag([1.0, 1.0, 3.0])) ** 2), T)  # fmt: skip
-    values, vectors = np.linalg.eigh(Q_nav)
-    moved = moved + (vectors * np.sqrt(np.clip(values, 0.0, None))) @ rng.standard_normal(
-        (6, COUNT)
+    root = psd_factors(Q_nav[np.newaxis])[0]
+    assert_allclose(root @ root.T, Q_nav, rtol=1e-9, atol=1e-15)  # a factor of rank 3
+    moved, log_next = reference_step(
+        particles, uniform_log_weights(), 0.5, PARAMS, A_W, model=MODEL, jitter=root
     )
     after = after_update(system, context)
-    assert_allclose(system.cloud.particles(after), moved, rtol=1e-12, atol=1e-14)
-    assert_array_equal(system.cloud.log_weights(after), log_next)
+    assert_allclose(system.cloud.particles(after)[0], moved, rtol=1e-12, atol=1e-12)
+    assert_array_equal(system.cloud.log_weights(after)[0], log_next)
 
 
 def build_loop():

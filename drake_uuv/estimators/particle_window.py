@@ -1,0 +1,274 @@
+"""The particle cloud's steps with late ranges (the host's ping window), for one run.
+
+A base of :class:`~drake_uuv.estimators.particle_cloud.ParticleCloud`: with late ranges the
+cloud at the window's anchor is stepped through the window's steps, each range weighed at its
+ping time along each particle's path, by numpy on the run's cloud (6×N views of the state),
+with a ``numpy.random.Generator`` seeded by the run's uniform of the step. Each particle keeps
+its target acceleration (and with modelled navigation errors its draw of their noise) over
+each window step, replayed as the window's steps are. A cloud with a window takes
+``batch_size`` 1.
+"""
+
+import functools
+import math
+from collections.abc import Callable
+
+import numpy as np
+from pydrake.systems.framework import Context, DiscreteValues
+from threadpoolctl import ThreadpoolController
+
+from drake_uuv.estimators.timed_step import instant_ranges, instants
+from drake_uuv.models.particle_filter import (
+    STATE_SIZE,
+    defensive_draw,
+    normalised,
+    range_terms,
+    resample_regularised,
+    weigh,
+    weighted_moments,
+)
+from drake_uuv.models.timing import transition
+
+# The uniform draw of the random port becomes a generator seed with this many bits (a double
+# in [0, 1) carries 53).
+_SEED_BITS = 53
+
+
+# A cloud drawn at the window's anchor is weighed at once by the window's ranges, which the
+# Gaussian it is drawn from never saw as raw ranges: where they fall in its tail (a linear
+# start is loose along the line of sight), N(x, P)'s own draws leave a handful of particles
+# with weight. Drawing from N(x, 2P), weighted back to N(x, P), populates the tail at a cost
+# of about half the effective sample size (realistic scenario, seed 9: 3 particles of 5000
+# kept their weight and the run stopped; with the widening it ran to the end).
+_HANDOVER_WIDENING = 2.0
+
+_blas: list | None = None
+
+
+def _on_one_blas_thread(method: Callable) -> Callable:
+    """Runs ``method`` with BLAS on one thread (the late-range steps' numpy products). The
+    cloud's products (6×N by N, 6×6 by 6×N, N by N) are split over threads by OpenBLAS from
+    about 10⁴ elements on, and waking the threads costs more than the product, the more so on
+    a busy machine: the realistic run (20 000 particles) took 13 s of CPU with the default
+    threads against 3 s with one. The BLAS libraries are found once and their thread counts
+    read and set directly (about 3 µs a call, where ``ThreadpoolController.limit`` inspects
+    every library each time, 20 µs)."""
+
+    @functools.wraps(method)
+    def on_one_thread(*args, **kwargs):
+        global _blas
+        if _blas is None:  # after numpy's import, so that it finds numpy's BLAS
+            _blas = ThreadpoolController().select(user_api="blas").lib_controllers
+        changed = [(blas, n) for blas in _blas if (n := blas.num_threads) != 1]
+        for blas, _ in changed:
+            blas.set_num_threads(1)
+        try:
+            return method(*args, **kwargs)
+        finally:
+            for blas, n in changed:
+                blas.set_num_threads(n)
+
+    return on_one_thread
+
+
+class LateRangeSteps:
+    """The late-range steps of :class:`~drake_uuv.estimators.particle_cloud.ParticleCloud`
+    (which declares the state they read: the particles, log weights, the window's per-particle
+    accelerations and navigation noise, and the work arrays)."""
+
+    def accelerations(self, context: Context) -> np.ndarray:
+        """Each particle's target acceleration over each window step (D×3×N)."""
+        D = self._window.schedule.window
+        value = context.get_discrete_state(self._accelerations_index).get_value()
+        return value.reshape(D, 3, self._parameters.count)
+
+    def jitter(self, context: Context) -> np.ndarray | None:
+        """Each particle's draw of the navigation's process noise over each window step
+        (D×6×N; None without modelled navigation errors or late ranges)."""
+        if self._jitter_index is None:
+            return None
+        D = self._window.schedule.window
+        value = context.get_discrete_state(self._jitter_index).get_value()
+        return value.reshape(D, 6, self._parameters.count)
+
+    def _jitter_root(self, context: Context) -> np.ndarray | None:
+        """A root of ``Q_nav``, what the modelled navigation errors add over the step from this
+        tick (the Gaussian filters add it to their Q); None when they add nothing."""
+        Q = self._host.navigation_process_noise(context)
+        if Q is None:
+            return None
+        # Q_nav has rank 3 (an acceleration's, or the position's walk): a symmetric root.
+        values, vectors = np.linalg.eigh(Q)
+        return vectors * np.sqrt(np.clip(values, 0.0, None))
+
+    def _draw_jitter(
+        self, root: np.ndarray | None, rng: np.random.Generator, out: np.ndarray | None = None
+    ) -> np.ndarray | None:
+        """Per particle, a draw of ``N(0, Q_nav)`` from its ``root`` (zero without one, in
+        ``out``; None without ``out``)."""
+        if root is None:
+            if out is not None:
+                out[...] = 0.0
+            return out
+        return np.matmul(root, rng.standard_normal((6, self._parameters.count)), out=out)
+
+    def _window_steps(self, context: Context):
+        host = self._host
+        samples = host.GetInputPort("range_samples").Eval(context)
+        status = host.GetInputPort("sonar_status").Eval(context)
+        steps, _ = self._window.steps(context, samples.reshape(2, -1), status)
+        return steps
+
+    def _move(
+        self, particles: np.ndarray, u: np.ndarray, G: np.ndarray, c: np.ndarray, out: np.ndarray
+    ) -> np.ndarray:
+        """``G [xᵢ; uᵢ] + c`` of every particle (its state at a ping or the next tick), in
+        ``out``."""
+        moved = np.matmul(G[:, :STATE_SIZE], particles, out=out)
+        moved += np.matmul(G[:, STATE_SIZE:], u, out=self._work[3])
+        moved += c[:, np.newaxis]
+        return moved
+
+    def _step(
+        self,
+        particles: np.ndarray,
+        log_weights: np.ndarray,
+        u: np.ndarray,
+        step,
+        out: np.ndarray,
+        jitter: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, list[float]]:
+        """The stored-frame particles at a step's tick (plus their ``jitter``, the navigation's
+        process noise), reweighted by its arrived ranges at their ping times along each
+        particle's path, and moved to the next tick (in ``out``)."""
+        host = self._host
+        if jitter is not None:
+            particles = particles + jitter
+        t = host.time_step
+        a = np.zeros(3) if host.error_model.navigated_motion else step.acceleration
+        new_nis = []
+        for instant in instants(step, paired=False):
+            G, B = transition(instant.tau)
+            moved = self._move(particles, u, G, B @ a, self._work[2])
+            if host.error_model.navigated_motion:
+                moved += step.vehicle(instant.tau, t)[:, np.newaxis]
+            q_s = step.attitude(instant.tau, t) @ host.baseline
+            ranges = instant_ranges(host, instant, q_s, step)
+            prior = normalised(log_weights)  # for the error model's mean and the weighing
+            R = self._R if ranges.exact else ranges.covariance(self._R, moved @ prior)
+            terms = range_terms(moved, ranges.z, q_s, R, ranges.sonars, self._work)
+            nis, log_weights = weigh(log_weights, *terms, self._work, prior)
+            if np.any(step.new[instant.sonars]):
+                new_nis.append(nis)
+        G, B = transition(t)
+        return self._move(particles, u, G, B @ a, out), log_weights, new_nis
+
+    def _window_posterior(self, context: Context) -> tuple:
+        """``(x, P, nis, log_weights, first)`` at this tick from the anchor's cloud
+        stepped through the window, then this tick's ranges; ``first`` the first step's log
+        weights and acceleration when its ranges have all arrived (the periodic update
+        resamples with them)."""
+        host = self._host
+        work = self._work
+        j = self._window.tick(context)
+        D = self._window.schedule.window
+        particles = self._stored_runs(context)[0].T
+        log_weights = self._log_weights_runs(context)[0]
+        u = self.accelerations(context)
+        jitter = self.jitter(context)
+        nis_total, first = [], None
+        for i, step in enumerate(self._window_steps(context)):
+            slot = step.step - (j - D)
+            particles, log_weights, new_nis = self._step(
+                particles, log_weights, u[slot], step, work[4 + i % 2],
+                None if jitter is None else jitter[slot],
+            )  # fmt: skip
+            nis_total += new_nis
+            if first is None and j >= D:
+                first = (log_weights, step.acceleration)
+        offset = host.vehicle_motion.offset(context)
+        relative = np.add(particles, offset[:, np.newaxis], out=work[2])
+        ranges = host.ranges(context)  # this tick's own pings (no latency, at the tick)
+        if ranges.valid.any():
+            prior = normalised(log_weights)
+            R = self._R if ranges.exact else ranges.covariance(self._R, relative @ prior)
+            terms = range_terms(relative, ranges.z, ranges.q_s, R, ranges.sonars, work)
+            nis, log_weights = weigh(log_weights, *terms, work, prior)
+            nis_total.append(nis)
+        x, P = weighted_moments(relative, normalised(log_weights), work)
+        nis = float(sum(nis_total)) if nis_total else math.nan
+        return x, P, nis, log_weights, first
+
+    @_on_one_blas_thread
+    def advance_window(
+        self,
+        context: Context,
+        discrete_state: DiscreteValues,
+        draw: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
+        """The periodic update with late ranges: the anchor's cloud moved one step on (its
+        oldest step's ranges weighed, resampled and regularised, moved by each particle's
+        own acceleration) or drawn from ``N(draw)`` (stored frame, at the new anchor); a new
+        acceleration per particle for the window's newest step."""
+        host = self._host
+        work = self._work
+        u_seed = float(self._seed_port.Eval(context)[0])
+        rng = np.random.default_rng(int(u_seed * 2.0**_SEED_BITS))
+        count = self._parameters.count
+        D = self._window.schedule.window
+        L = self._W_factor
+        out = discrete_state.get_mutable_value(self._particles_index).reshape(count, STATE_SIZE).T
+        u_next = discrete_state.get_mutable_value(self._accelerations_index).reshape(D, 3, count)
+        jitter_next = root = None
+        if self._jitter_index is not None:
+            jitter_next = discrete_state.get_mutable_value(self._jitter_index).reshape(D, 6, count)
+            root = self._jitter_root(context)
+        if draw is not None:
+            particles, log_weights = defensive_draw(
+                draw[0], draw[1], count, rng, _HANDOVER_WIDENING
+            )
+            out[...] = particles
+            for k in range(D):
+                np.matmul(L, rng.standard_normal((3, count)), out=u_next[k])
+                if jitter_next is not None:
+                    self._draw_jitter(root, rng, jitter_next[k])
+        else:
+            particles = self._stored_runs(context)[0].T
+            log_weights = self._log_weights_runs(context)[0]
+            u = self.accelerations(context)
+            jitter = self.jitter(context)
+            first = self._posterior.Eval(context)[5]
+            chosen = None
+            if first is None:
+                out[...] = particles
+            else:  # the oldest step's ranges have all arrived: the posterior weighed them
+                weighed, acceleration = first
+                particles, log_weights, chosen = resample_regularised(
+                    particles, weighed, rng, self._parameters, work=work
+                )
+                u_first = u[0]
+                if chosen is not None:  # each particle's path follows it
+                    u_first = np.take(u_first, chosen, axis=1, out=work[1][:3], mode="clip")
+                if jitter is not None:  # and its draw of the navigation's noise
+                    particles = particles + (jitter[0] if chosen is None else jitter[0][:, chosen])
+                a = np.zeros(3) if host.error_model.navigated_motion else acceleration
+                G, B = transition(host.time_step)
+                self._move(particles, u_first, G, B @ a, out)
+            _shift_window(u, chosen, u_next)
+            np.matmul(L, rng.standard_normal(out=work[3][:3]), out=u_next[-1])
+            if jitter is not None:
+                _shift_window(jitter, chosen, jitter_next)
+                self._draw_jitter(root, rng, jitter_next[-1])
+        x, P = weighted_moments(out, normalised(log_weights), work)
+        host.write_prediction(discrete_state, x, P)
+        discrete_state.set_value(self._log_weights_index, log_weights)
+        discrete_state.set_value(self._live_index, np.ones(1))
+
+
+def _shift_window(slots: np.ndarray, chosen: np.ndarray | None, out: np.ndarray) -> None:
+    """The window's per-particle slots (D×·×N) moved one step on into ``out[:-1]``, each
+    particle's following it through a resampling (``chosen``)."""
+    if chosen is None:
+        out[:-1] = slots[1:]
+    else:
+        np.take(slots[1:], chosen, axis=2, out=out[:-1], mode="clip")

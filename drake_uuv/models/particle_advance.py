@@ -1,0 +1,312 @@
+"""The particle filter's periodic update over a batch of runs, compiled: resampling (systematic),
+the shrinkage kernel's regularisation, and the move by the double integrator with each
+particle's own acceleration draw (see :mod:`drake_uuv.models.particle_kernels` for the layout,
+the arithmetic and the costs; the draws are :mod:`drake_uuv.models.particle_random`'s).
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+
+from drake_uuv.models.particle_kernels import (
+    CONTRACT,
+    moments_into,
+    normalise_into,
+    psd_factor,
+    weigh_into,
+)
+from drake_uuv.models.particle_random import (
+    ACCELERATION_SLOT,
+    DRAW_SLOT,
+    JITTER_SLOT,
+    KERNEL_SLOT,
+    normal,
+    resampling_counter,
+    slot_counter,
+    uniform,
+)
+
+
+@njit(cache=True, fastmath=CONTRACT)
+def cloud_advance(
+    particles: np.ndarray,
+    log_weights: np.ndarray,
+    reweigh: np.ndarray,
+    posterior_log_weights: np.ndarray,
+    posterior_weights: np.ndarray,
+    posterior_x: np.ndarray,
+    posterior_P: np.ndarray,
+    keys: np.ndarray,
+    moving: np.ndarray,
+    drawn: np.ndarray,
+    draw_x: np.ndarray,
+    draw_P: np.ndarray,
+    weigh_draw: np.ndarray,
+    offset: np.ndarray,
+    z: np.ndarray,
+    used: np.ndarray,
+    q_s: np.ndarray,
+    R: np.ndarray,
+    time_step: float,
+    acceleration: np.ndarray,
+    W_factor: np.ndarray,
+    jitter: np.ndarray,
+    resample_threshold: float,
+    bandwidth: float,
+    out: np.ndarray,
+    out_log_weights: np.ndarray,
+    x: np.ndarray,
+    P: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """The periodic update of every ``moving`` run (others: ``x``, ``P`` NaN, not written).
+
+    A run's cloud: for a ``drawn`` run N draws of ``N(draw_x, draw_P)`` (relative) less
+    ``offset``, weighed by the ranges ``z``, ``used``, ``q_s``, ``R`` where ``weigh_draw``;
+    else its ``particles`` (B×N×6, stored) with ``log_weights``, or where ``reweigh`` the
+    posterior's (:func:`~drake_uuv.models.particle_kernels.cloud_posterior`'s log weights,
+    weights and moments). Resampled when its effective sample size is below
+    ``resample_threshold · N`` (systematic, then the shrinkage kernel of ``bandwidth``), moved
+    by the double integrator of ``time_step`` with ``acceleration`` (B×3) less ``W_factor ε``,
+    plus ``jitter[b] ε'`` (factors of the navigation's noise; zeros: none). Writes ``out``
+    (B×N×6; not ``particles``), ``out_log_weights`` and the predicted moments ``x``, ``P``.
+    Run b draws from ``keys[b]``."""
+    B, n = log_weights.shape
+    weights, lw, chosen = np.empty(n), np.empty(n), np.empty(n, dtype=np.int64)
+    ranges, drawn_cloud = np.empty((n, 2)), np.empty((n, 6))
+    L, mean, c = np.empty((6, 6)), np.empty(6), np.empty(6)
+    half = 0.5 * time_step * time_step
+    for b in range(B):
+        if not moving[b]:
+            x[b, :] = math.nan
+            P[b, :, :] = math.nan
+            continue
+        key = keys[b]
+        for k in range(3):
+            c[k] = half * acceleration[b, k]
+            c[k + 3] = time_step * acceleration[b, k]
+        cov, known = P[b], False  # work space, unless the posterior's moments are known
+        if drawn[b]:
+            _draw_cloud(key, draw_x[b], draw_P[b], offset[b], L, drawn_cloud, lw, weights)
+            if weigh_draw[b]:
+                weigh_into(
+                    drawn_cloud, offset[b], lw, weights, z[b], used[b], q_s[b], R[b], ranges, lw,
+                    weights,
+                )  # fmt: skip
+        elif reweigh[b]:  # the posterior's weights and moments (stored frame: less offset)
+            lw[:] = posterior_log_weights[b]
+            weights[:] = posterior_weights[b]
+            for k in range(6):
+                mean[k] = posterior_x[b, k] - offset[b, k]
+            cov, known = posterior_P[b], True
+        else:
+            lw[:] = log_weights[b]
+            normalise_into(lw, weights)
+        _advance_run(
+            particles[b], drawn_cloud, drawn[b], lw, weights, known, mean, cov, key, chosen, L, c,
+            time_step, W_factor, jitter[b], resample_threshold, bandwidth, out[b],
+            out_log_weights[b], x[b], P[b],
+        )  # fmt: skip
+
+
+@njit
+def _draw_cloud(
+    key: np.uint64,
+    mean: np.ndarray,
+    cov: np.ndarray,
+    offset: np.ndarray,
+    L: np.ndarray,
+    out: np.ndarray,
+    lw: np.ndarray,
+    weights: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """N draws of ``N(mean, cov)`` less ``offset`` in ``out`` (N×6), equally weighted (``lw``,
+    ``weights``); ``L`` work space."""
+    psd_factor(cov, L)
+    n = out.shape[0]
+    for i in range(n):
+        _draw_gaussian_call(key, i, DRAW_SLOT, mean, L, offset, out[i])
+        lw[i] = -math.log(n)
+    normalise_into(lw, weights)
+
+
+@njit(inline="always", fastmath=CONTRACT)
+def _draw_gaussian(
+    key: np.uint64,
+    particle: int,
+    slot: int,
+    mean: np.ndarray,
+    L: np.ndarray,
+    offset: np.ndarray,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """A draw of ``N(mean, L Lᵀ)`` (``L`` lower triangular, as :func:`psd_factor` gives it)
+    less ``offset`` from six slots of a particle, in ``out``."""
+    e0 = normal(key, slot_counter(particle, slot))
+    e1 = normal(key, slot_counter(particle, slot + 1))
+    e2 = normal(key, slot_counter(particle, slot + 2))
+    e3 = normal(key, slot_counter(particle, slot + 3))
+    e4 = normal(key, slot_counter(particle, slot + 4))
+    e5 = normal(key, slot_counter(particle, slot + 5))
+    out[0] = mean[0] + L[0, 0] * e0 - offset[0]
+    out[1] = mean[1] + (L[1, 0] * e0 + L[1, 1] * e1) - offset[1]
+    out[2] = mean[2] + (L[2, 0] * e0 + L[2, 1] * e1 + L[2, 2] * e2) - offset[2]
+    out[3] = mean[3] + (L[3, 0] * e0 + L[3, 1] * e1 + L[3, 2] * e2 + L[3, 3] * e3) - offset[3]
+    out[4] = (
+        mean[4] + (L[4, 0] * e0 + L[4, 1] * e1 + L[4, 2] * e2 + L[4, 3] * e3 + L[4, 4] * e4)
+        - offset[4]
+    )  # fmt: skip
+    out[5] = (
+        mean[5] + (
+            L[5, 0] * e0 + L[5, 1] * e1 + L[5, 2] * e2 + L[5, 3] * e3 + L[5, 4] * e4
+            + L[5, 5] * e5
+        ) - offset[5]
+    )  # fmt: skip
+
+
+@njit(fastmath=CONTRACT)
+def _draw_gaussian_call(
+    key: np.uint64,
+    particle: int,
+    slot: int,
+    mean: np.ndarray,
+    L: np.ndarray,
+    offset: np.ndarray,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """:func:`_draw_gaussian` compiled once, for the draws off the hot path (a drawn cloud,
+    the navigation's noise): inlined everywhere it made the update's first compilation twice
+    as long."""
+    _draw_gaussian(key, particle, slot, mean, L, offset, out)
+
+
+@njit
+def _systematic_into(
+    weights: np.ndarray, u: float, chosen: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """Systematic resampling's ancestors with offset ``u`` in ``chosen``: particle j is copied
+    ``⌈N cdf_j − u⌉ − ⌈N cdf_{j−1} − u⌉`` times (the last edge N: rounding loses no copy)."""
+    n = weights.shape[0]
+    cdf = 0.0
+    filled = 0
+    for j in range(n):
+        cdf += weights[j]
+        edge = n if j == n - 1 else min(max(int(math.ceil(cdf * n - u)), 0), n)
+        while filled < edge:
+            chosen[filled] = j
+            filled += 1
+
+
+@njit(fastmath=CONTRACT)
+def _prepare_resampling(
+    source: np.ndarray,
+    drawn: np.ndarray,
+    use_drawn: bool,
+    weights: np.ndarray,
+    have_moments: bool,
+    mean: np.ndarray,
+    cov: np.ndarray,
+    key: np.uint64,
+    bandwidth: float,
+    L: np.ndarray,
+    shift: np.ndarray,
+    chosen: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Systematic resampling's ancestors in ``chosen``, and the shrinkage kernel's ``h L``
+    (``L Lᵀ`` the cloud's covariance before resampling: ``cov``, or computed unless
+    ``have_moments``) and ``(1 − a) x̄`` in ``shift``."""
+    n = weights.shape[0]
+    if bandwidth > 0.0:
+        if not have_moments:
+            if use_drawn:
+                moments_into(drawn, np.zeros(6), weights, mean, cov)
+            else:
+                moments_into(source, np.zeros(6), weights, mean, cov)
+        psd_factor(cov, L)
+        shrink = math.sqrt(1.0 - bandwidth * bandwidth)
+        for k in range(6):
+            shift[k] = (1.0 - shrink) * mean[k]
+            for m in range(6):
+                L[k, m] *= bandwidth
+    _systematic_into(weights, uniform(key, resampling_counter(n)), chosen)
+
+
+@njit(fastmath=CONTRACT)
+def _advance_run(
+    source: np.ndarray,
+    drawn: np.ndarray,
+    use_drawn: bool,
+    lw: np.ndarray,
+    weights: np.ndarray,
+    have_moments: bool,
+    mean: np.ndarray,
+    cov: np.ndarray,
+    key: np.uint64,
+    chosen: np.ndarray,
+    L: np.ndarray,
+    c: np.ndarray,
+    t: float,
+    W_factor: np.ndarray,
+    jitter: np.ndarray,
+    resample_threshold: float,
+    bandwidth: float,
+    target: np.ndarray,
+    out_log_weights: np.ndarray,
+    x: np.ndarray,
+    P: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """One run of :func:`cloud_advance` from its cloud ``source`` (N×6, stored, read-only) or
+    with ``use_drawn`` its ``drawn`` cloud (one compiled function for both), log weights ``lw``
+    and ``weights`` (with ``have_moments`` their ``mean`` and ``cov``): resampled when
+    degenerate, moved into ``target``; ``lw`` and ``weights`` become the predicted ones."""
+    n = source.shape[0]
+    zero = np.zeros(6)
+    shift = np.empty(6)
+    shrink = math.sqrt(1.0 - bandwidth * bandwidth)
+    squares = 0.0
+    for i in range(n):
+        squares += weights[i] * weights[i]
+    resample = 1.0 / squares < resample_threshold * n
+    if resample:
+        _prepare_resampling(
+            source, drawn, use_drawn, weights, have_moments, mean, cov, key, bandwidth, L, shift,
+            chosen,
+        )  # fmt: skip
+        for i in range(n):
+            lw[i] = -math.log(n)
+            weights[i] = 1.0 / n
+    jittered = False
+    for k in range(6):
+        for m in range(6):
+            jittered |= jitter[k, m] != 0.0
+    half, p, e = 0.5 * t * t, np.empty(6), np.empty(6)
+    for i in range(n):
+        row = chosen[i] if resample else i
+        if use_drawn:
+            for k in range(6):
+                p[k] = drawn[row, k]
+        else:
+            for k in range(6):
+                p[k] = source[row, k]
+        if resample and bandwidth > 0.0:
+            _draw_gaussian(key, i, KERNEL_SLOT, shift, L, zero, e)
+            for k in range(6):
+                p[k] = e[k] + shrink * p[k]
+        e0 = normal(key, slot_counter(i, ACCELERATION_SLOT))
+        e1 = normal(key, slot_counter(i, ACCELERATION_SLOT + 1))
+        e2 = normal(key, slot_counter(i, ACCELERATION_SLOT + 2))
+        u0 = W_factor[0, 0] * e0 + W_factor[0, 1] * e1 + W_factor[0, 2] * e2
+        u1 = W_factor[1, 0] * e0 + W_factor[1, 1] * e1 + W_factor[1, 2] * e2
+        u2 = W_factor[2, 0] * e0 + W_factor[2, 1] * e1 + W_factor[2, 2] * e2
+        target[i, 0] = (c[0] - half * u0) + (p[0] + t * p[3])
+        target[i, 1] = (c[1] - half * u1) + (p[1] + t * p[4])
+        target[i, 2] = (c[2] - half * u2) + (p[2] + t * p[5])
+        target[i, 3] = (c[3] - t * u0) + p[3]
+        target[i, 4] = (c[4] - t * u1) + p[4]
+        target[i, 5] = (c[5] - t * u2) + p[5]
+        if jittered:  # the navigation's process noise, a draw per particle
+            _draw_gaussian_call(key, i, JITTER_SLOT, zero, jitter, zero, p)
+            for k in range(6):
+                target[i, k] += p[k]
+    out_log_weights[:] = lw
+    moments_into(target, zero, weights, x, P)
