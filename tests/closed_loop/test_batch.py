@@ -13,9 +13,9 @@ CONFIGS = {
     "ekf": ("paper", ["estimator=Ekf"]),
     "ukf": ("paper", ["estimator=Ukf"]),
     "lqr-random-attitude": ("paper", ["tracking=LqrTracking", "attitude=RandomAttitude"]),
-    "particle_filter": ("paper", ["estimator=ParticleFilter", "estimator.particles=300"]),
+    "particle_filter": ("paper", ["estimator=ParticleFilter", "estimator.particle_count=300"]),
     "hovering_auv": ("hovering_auv", []),
-    "realistic-ekf": ("realistic", ["estimator=Ekf"]),
+    "realistic-ekf": ("realistic", ["estimator=Ekf", "estimator.particle_bridge=false"]),
 }
 
 
