@@ -440,6 +440,9 @@ def _second_order(P, H, h, m, order, Rm):
     ``½ tr(M_a P M_b P)/(d_a d_b)`` (the variance of ``½ eᵀ H'' e`` for Gaussian ``e``) added
     to ``Rm``."""
     Mp = np.empty((2, 3, 3))  # (I − u uᵀ) P_qq of each range
+    d = np.empty(2)  # the ranges at the estimate, before the mean term is added
+    for a in range(m):
+        d[a] = h[a] if h[a] > MIN_RANGE else MIN_RANGE
     for a in range(m):
         for i in range(3):
             for j in range(3):
@@ -448,18 +451,15 @@ def _second_order(P, H, h, m, order, Rm):
                     s -= H[a, i] * H[a, k] * P[k, j]
                 Mp[a, i, j] = s
     for a in range(m):
-        trace = Mp[a, 0, 0] + Mp[a, 1, 1] + Mp[a, 2, 2]
-        d = h[a] if h[a] > MIN_RANGE else MIN_RANGE
         if order & 2:
             for b in range(m):
-                db = h[b] if h[b] > MIN_RANGE else MIN_RANGE
                 s = 0.0
                 for i in range(3):
                     for j in range(3):
                         s += Mp[a, i, j] * Mp[b, j, i]
-                Rm[a, b] += 0.5 * s / (d * db)
+                Rm[a, b] += 0.5 * s / (d[a] * d[b])
         if order & 1:
-            h[a] += 0.5 * trace / d
+            h[a] += 0.5 * (Mp[a, 0, 0] + Mp[a, 1, 1] + Mp[a, 2, 2]) / d[a]
 
 
 @njit(cache=True, error_model="numpy")
