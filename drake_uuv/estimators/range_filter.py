@@ -94,7 +94,7 @@ class RangeFilter(RelativeStateEstimator):
       start so far, and the last one's reason: its window's summed NIS, the χ² threshold
       that sum exceeded and the window's summed dimensions (NaN before the first). A run in
       the Gaussian phase whose last ``recovery_window`` NIS (applied or gated updates) sum
-      above the threshold (:class:`~drake_uuv.models.handover.DivergenceTest`) goes back to
+      above the threshold (:class:`~drake_uuv.models.divergence.DivergenceTest`) goes back to
       the linear start from its estimate, its covariance widened by the window's mean NIS
       per dimension plus the initial covariance; the linear start's prior share is then all
       of it, so the hand-over rule waits until the data outweigh that prior again.

@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
+from drake_uuv.models.divergence import DivergenceTest
 from drake_uuv.models.filters import SECOND_ORDER_TERMS, RangeUpdate, ekf_update, iekf_update
 from drake_uuv.models.handover import (
-    DivergenceTest,
     HandoverPolicy,
     HandoverRule,
     ThresholdHandover,
