@@ -274,7 +274,11 @@ class Ekf(LinearizedRangeOptions):
     ``d + tr(P⊥)/(2d)``, the mean range of the Gaussian ``N(x̂, P)``, so the estimate moves to
     the posterior's mean inside the curved range shell instead of onto it; ``variance`` adds
     that term's variance ``½ tr(H''P H''P)`` to the ranges' noise; ``full`` both; ``none`` the
-    first-order EKF.
+    first-order EKF. Measured over 200 runs each (particle bridge off), mean NEES none →
+    full: paper regime under the LQR world-frame law 9.50 → 7.41, at 14 m under it 17.2 → 9.3,
+    ``far_standoff`` 10.5 → 7.1, position RMSE equal or lower; the first-order EKF's
+    innovations are unbiased, its estimate is not (it sits on the range shell, the truth's
+    mean inside it by ``tr(P⊥)/(2d)``).
     """
 
     second_order: str = "none"
