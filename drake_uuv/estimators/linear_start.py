@@ -110,3 +110,10 @@ class LinearStart:
         A, _, _ = self._host.model
         discrete_state.set_value(self._prior_share_index, congruence_runs(S, A, linear).ravel())
         return S
+
+    def restart(self, discrete_state: DiscreteValues, P: np.ndarray, runs: np.ndarray) -> None:
+        """The runs in ``runs`` (B) start again from a prior of covariance ``P`` (B, 6, 6),
+        filtered at this tick: their next ``S`` is all of it, predicted (``A P Aᵀ``)."""
+        A, _, _ = self._host.model
+        S = per_run(discrete_state.get_mutable_value(self._prior_share_index), self._B, 6, 6)
+        S[runs] = congruence_runs(P, A, runs)[runs]

@@ -86,9 +86,18 @@ class RangeFilter(RelativeStateEstimator):
         - measurement_status
         - nis
         - estimator_phase
+        - estimator_recovery (with recovery)
 
     - ``estimator_phase`` (2): this step's phase and the linear updates applied before it
       (logged: a run that never leaves its linear start is warned of).
+    - ``estimator_recovery`` (4, with ``recovery_window``): the run's returns to its linear
+      start so far, and the last one's reason: its window's summed NIS, the χ² threshold
+      that sum exceeded and the window's summed dimensions (NaN before the first). A run in
+      the Gaussian phase whose last ``recovery_window`` NIS (applied or gated updates) sum
+      above the threshold (:class:`~drake_uuv.models.divergence.DivergenceTest`) goes back to
+      the linear start from its estimate, its covariance widened by the window's mean NIS
+      per dimension plus the initial covariance; the linear start's prior share is then all
+      of it, so the hand-over rule waits until the data outweigh that prior again.
     - ``particle_seed`` (1, random uniform in [0, 1), only with particles): seeds the step's
       draw, resampling, regularisation and process noise.
     - The other ports are the base class's (with ``vehicle_motion: navigation``, ``p_WU_nav``
@@ -138,6 +147,20 @@ class RangeFilter(RelativeStateEstimator):
             host = self if self.window is None else _RunOfOne(self)
             self._cloud = ParticleCloud(host, config.particle_parameters(), self._R, batch_size=B)
         self._dof_linear = np.ones(B, dtype=np.intp)
+        self._divergence = config.divergence_test()
+        if self._divergence is not None:
+            if self.window is not None:
+                raise ValueError(
+                    "recovery_window: a recovery with late ranges (sonar ping offsets or "
+                    f"latency) is not supported, got {config.recovery_window!r}"
+                )
+            self._window_index = self.DeclareDiscreteState(self._divergence.empty(B).ravel())
+            self._recovery_index = self.DeclareDiscreteState(
+                tiled([0.0, np.nan, np.nan, np.nan], B)
+            )
+            self.DeclareStateOutputPort("estimator_recovery", self._recovery_index)
+            self.extra_signals = (*type(self).extra_signals, _RECOVERY_SIGNAL)
+            self._restart_P = self.initial_estimate.P
 
     @property
     def policy(self) -> HandoverPolicy:
@@ -264,6 +287,14 @@ class RangeFilter(RelativeStateEstimator):
         following, redraw = self._policy.next_phases(phases, evidence)
         following = np.where(asked, following, phases)
         redraw &= asked
+        if self._divergence is not None:
+            restart, scale = self._diverged(context, phases, filtered, ranges, discrete_state)
+            following = np.where(restart, _LINEAR, following)
+            redraw &= ~restart
+            done = np.where(restart, 0.0, done)
+            if restart.any():
+                filtered = self._restarted(filtered, restart, scale)
+                self._start.restart(discrete_state, filtered.P, restart)
         state = np.empty((self.batch_size, 2))
         state[:, 0] = following
         state[:, 1] = done
@@ -276,6 +307,51 @@ class RangeFilter(RelativeStateEstimator):
             super().advance(context, filtered, discrete_state)
         if to_particles.any():
             self._advance_particles(context, filtered, discrete_state, phases, redraw, to_particles)
+
+    def _diverged(
+        self,
+        context: Context,
+        phases: np.ndarray,
+        filtered: FilteredEstimate,
+        ranges: Ranges,
+        discrete_state: DiscreteValues,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The runs whose Gaussian update has diverged by this tick (B) and each one's
+        window mean NIS per dimension (B). Each run in the Gaussian phase adds its update's
+        NIS (applied or gated: a diverged filter gates its ranges) to its window; a run
+        outside that phase, or restarting, empties it. Writes the windows and, for a
+        restart, the record ``[restarts so far, the window's summed NIS, the threshold it
+        exceeded, its summed dimensions]``."""
+        B, test = self.batch_size, self._divergence
+        n = test.window
+        windows = per_run(context.get_discrete_state(self._window_index).get_value(), B)
+        gaussian = phases == _RANGE
+        new = gaussian & np.isfinite(filtered.nis)
+        dof = ranges.valid.sum(axis=1).astype(float)
+        windows = test.pushed(windows, filtered.nis, dof, new)
+        diverged, total, threshold = test.diverged(windows)
+        restart = new & diverged
+        summed_dof = windows[:, n:].sum(axis=1)
+        if restart.any():
+            record = per_run(context.get_discrete_state(self._recovery_index).get_value(), B)
+            fresh = np.stack([record[:, 0] + 1.0, total, threshold, summed_dof], axis=1)
+            record = np.where(restart[:, np.newaxis], fresh, record)
+            discrete_state.set_value(self._recovery_index, record.ravel())
+        windows = np.where((gaussian & ~restart)[:, np.newaxis], windows, np.nan)
+        discrete_state.set_value(self._window_index, windows.ravel())
+        with np.errstate(invalid="ignore", divide="ignore"):
+            scale = np.where(restart, total / summed_dof, 1.0)
+        return restart, scale
+
+    def _restarted(
+        self, filtered: FilteredEstimate, restart: np.ndarray, scale: np.ndarray
+    ) -> FilteredEstimate:
+        """``filtered`` with each restarting run's covariance widened by its window's mean NIS
+        per dimension ``scale`` (so its innovations become typical) plus the initial
+        covariance (so the linear start does not begin overconfident)."""
+        widened = filtered.P * scale[:, np.newaxis, np.newaxis] + self._restart_P
+        P = np.where(restart[:, np.newaxis, np.newaxis], widened, filtered.P)
+        return FilteredEstimate(filtered.x, P, filtered.status, filtered.nis, filtered.floor)
 
     def _advance_particles(
         self,
@@ -331,6 +407,13 @@ class RangeFilter(RelativeStateEstimator):
         self._cloud.advance(
             context, filtered, discrete_state, (draw_x, draw_P), weigh, drawn=drawn, runs=runs
         )
+
+
+_RECOVERY_SIGNAL = Signal(
+    "estimator_recovery", "estimator", (4,),
+    "a Gaussian range filter's returns to its linear start so far, and the last one's "
+    "reason: its window's summed NIS, the χ² threshold it exceeded, the summed dimensions",
+)  # fmt: skip
 
 
 class _RunOfOne:

@@ -427,8 +427,43 @@ def _quadratic(nu, Sinv, m):
     return s
 
 
+#: The second-order terms an EKF may keep (bits of ``order``): the range's mean
+#: ``½ tr(H''P)`` and its variance ``½ tr(H''P H''P)``.
+SECOND_ORDER_MEAN, SECOND_ORDER_VARIANCE = 1, 2
+SECOND_ORDER_CODES = {"none": 0, "mean": 1, "variance": 2, "full": 3}
+
+
 @njit(cache=True, error_model="numpy")
-def _ekf(x, P, z, q_s, R, use, mask, x_out, P_out, nis_out):
+def _second_order(P, H, h, m, order, Rm):
+    """Gelb's second-order terms of the ranges (Hessian ``(I − u uᵀ)/d`` on ``q``, ``u = H``'s
+    row): the mean ``tr(P⊥)/(2d)`` added to ``h`` and, between ranges a and b,
+    ``½ tr(M_a P M_b P)/(d_a d_b)`` (the variance of ``½ eᵀ H'' e`` for Gaussian ``e``) added
+    to ``Rm``."""
+    Mp = np.empty((2, 3, 3))  # (I − u uᵀ) P_qq of each range
+    d = np.empty(2)  # the ranges at the estimate, before the mean term is added
+    for a in range(m):
+        d[a] = h[a] if h[a] > MIN_RANGE else MIN_RANGE
+    for a in range(m):
+        for i in range(3):
+            for j in range(3):
+                s = P[i, j]
+                for k in range(3):
+                    s -= H[a, i] * H[a, k] * P[k, j]
+                Mp[a, i, j] = s
+    for a in range(m):
+        if order & 2:
+            for b in range(m):
+                s = 0.0
+                for i in range(3):
+                    for j in range(3):
+                        s += Mp[a, i, j] * Mp[b, j, i]
+                Rm[a, b] += 0.5 * s / (d[a] * d[b])
+        if order & 1:
+            h[a] += 0.5 * (Mp[a, 0, 0] + Mp[a, 1, 1] + Mp[a, 2, 2]) / d[a]
+
+
+@njit(cache=True, error_model="numpy")
+def _ekf(x, P, z, q_s, R, use, mask, order, x_out, P_out, nis_out):
     rows = np.empty(2, np.int64)
     h, nu = np.empty(2), np.empty(2)
     H, Rm, S, Sinv = np.empty((2, 6)), np.empty((2, 2)), np.empty((2, 2)), np.empty((2, 2))
@@ -442,6 +477,8 @@ def _ekf(x, P, z, q_s, R, use, mask, x_out, P_out, nis_out):
             continue
         _ranges_and_rows(x[r], q_s, r, rows, m, h, H)
         _select_R(R, r, rows, m, Rm)
+        if order != 0:
+            _second_order(P[r], H, h, m, order, Rm)
         for a in range(m):
             nu[a] = z[r, rows[a]] - h[a]
         _gain(P[r], H, Rm, m, S, Sinv, K)
@@ -649,11 +686,14 @@ def ekf_update_runs(
     R: np.ndarray,
     use: np.ndarray,
     mask: np.ndarray,
+    second_order: str = "none",
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`~drake_uuv.models.filters.ekf_update` of each run in ``mask`` on the sonars of
-    ``use`` (B, 2): ``z`` (B, 2) the range means, ``q_s`` (B, 3), ``R`` (2, 2) or (B, 2, 2)."""
+    ``use`` (B, 2): ``z`` (B, 2) the range means, ``q_s`` (B, 3), ``R`` (2, 2) or (B, 2, 2);
+    ``second_order`` the terms of the ranges' expansion it keeps (none, mean, variance, full)."""
     out = _outputs(x, P)
-    _ekf(x, P, z, q_s, R.reshape(-1, 2, 2), use, mask, *out)
+    order = SECOND_ORDER_CODES[second_order]
+    _ekf(x, P, z, q_s, R.reshape(-1, 2, 2), use, mask, order, *out)
     return out
 
 
@@ -719,8 +759,8 @@ def range_update_runs(update: Callable) -> RangeUpdateRuns:
     function = update
     if isinstance(update, functools.partial):
         function, keywords = update.func, dict(update.keywords)
-    if function is ekf_update and not keywords:
-        return ekf_update_runs
+    if function is ekf_update and set(keywords) <= {"second_order"}:
+        return functools.partial(ekf_update_runs, **keywords) if keywords else ekf_update_runs
     if function is iekf_update and set(keywords) <= {"max_iterations", "tolerance", "max_halvings"}:
         return functools.partial(iekf_update_runs, **keywords)
     if function is ukf_range_update and set(keywords) <= {"parameters"}:

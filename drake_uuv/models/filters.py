@@ -39,6 +39,7 @@ from collections.abc import Callable
 import numpy as np
 
 from drake_uuv.models.measurement import (
+    MIN_RANGE,
     range_jacobian,
     range_measurement,
 )
@@ -119,6 +120,7 @@ def ekf_update(
     q_s: np.ndarray,
     R: np.ndarray,
     sonars: tuple[int, ...] | np.ndarray = (0, 1),
+    second_order: str = "none",
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """EKF update on the raw ranges, Joseph form.
 
@@ -128,15 +130,53 @@ def ekf_update(
     other entry of ``z`` is then ignored and may be NaN).
     Returns ``(x, P, nis)`` with ``nis = νᵀ S⁻¹ ν`` (χ² with ``len(sonars)`` degrees of
     freedom when consistent).
+
+    ``second_order`` keeps terms of the ranges' second-order expansion (Gelb, *Applied Optimal
+    Estimation*, the truncated second-order filter): ``"mean"`` predicts each range as
+    ``dᵢ + tr(P⊥ᵢ)/(2dᵢ)``, the mean of ``|q + e|`` under ``e ~ N(0, P_qq)`` to second order
+    (:func:`second_order_range_terms`); ``"variance"`` adds the variance of that quadratic
+    term, ``½ tr(H''ᵢ P H''ⱼ P)``, to ``R``; ``"full"`` both; ``"none"`` neither (the EKF).
     """
     rows, z, R = _select(z, R, sonars)
     H = range_jacobian(x_pred, q_s)[rows]
-    nu = z - range_measurement(x_pred, q_s)[rows]
+    h = range_measurement(x_pred, q_s)[rows]
+    if second_order != "none":
+        mean, covariance = second_order_range_terms(x_pred, P_pred, q_s)
+        if second_order in ("mean", "full"):
+            h = h + mean[rows]
+        if second_order in ("variance", "full"):
+            R = R + covariance[np.ix_(rows, rows)]
+    nu = z - h
     S = H @ P_pred @ H.T + R
     K = np.linalg.solve(S, H @ P_pred).T  # P Hᵀ S⁻¹ (S, P symmetric)
     x = x_pred + K @ nu
     P = _joseph(P_pred, K, H, R)
     return x, P, float(nu @ np.linalg.solve(S, nu))
+
+
+SECOND_ORDER_TERMS = ("none", "mean", "variance", "full")
+
+
+def second_order_range_terms(
+    x: np.ndarray, P: np.ndarray, q_s: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The second-order terms of both ranges ``dᵢ(q + e) = dᵢ + uᵢᵀe + ½ eᵀ H''ᵢ e + …`` under
+    ``e ~ N(0, P_qq)``, ``H''ᵢ = (I − uᵢuᵢᵀ)/dᵢ``: their means ``tr(P⊥ᵢ)/(2dᵢ)`` (2) and
+    covariance ``½ tr(H''ᵢ P_qq H''ⱼ P_qq)`` (2×2) [m, m²]."""
+    q = np.asarray(x, dtype=float)[:3]
+    P_qq = np.asarray(P, dtype=float)[:3, :3]
+    q_s = np.asarray(q_s, dtype=float).reshape(3)
+    hessians = []
+    for sign in (0.5, -0.5):
+        v = q + sign * q_s
+        d = max(float(np.linalg.norm(v)), MIN_RANGE)
+        u = v / d
+        hessians.append((np.eye(3) - np.outer(u, u)) / d)
+    mean = np.array([0.5 * np.trace(M @ P_qq) for M in hessians])
+    covariance = np.array(
+        [[0.5 * np.trace(Ma @ P_qq @ Mb @ P_qq) for Mb in hessians] for Ma in hessians]
+    )
+    return mean, covariance
 
 
 def iekf_update(

@@ -5,13 +5,19 @@ of :class:`EstimatorOptions`. The factory that builds the system of each variant
 :func:`drake_uuv.estimators.make_estimator`.
 """
 
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from drake_uuv.models.filters import RangeUpdate, ekf_update, iekf_update
-from drake_uuv.models.handover import HandoverPolicy, HandoverRule, ThresholdHandover
+from drake_uuv.models.divergence import DivergenceTest
+from drake_uuv.models.filters import SECOND_ORDER_TERMS, RangeUpdate, ekf_update, iekf_update
+from drake_uuv.models.handover import (
+    HandoverPolicy,
+    HandoverRule,
+    ThresholdHandover,
+)
 from drake_uuv.models.information import EstimatorPlanningModel, PlannedMeasurement
 from drake_uuv.models.particle_filter import ParticleFilterParameters
 from drake_uuv.models.unscented import ukf_range_update
@@ -165,6 +171,11 @@ class RawRangeOptions(EstimatorOptions):
         """The Gaussian update on the raw ranges (None: the filter carries particles only)."""
         return None
 
+    def divergence_test(self) -> DivergenceTest | None:
+        """The windowed NIS test that sends a Gaussian run back to its linear start (None:
+        none, as for a filter without a Gaussian update)."""
+        return None
+
     def planning_model(self) -> EstimatorPlanningModel:
         """The raw ranges, after a linear start the planner mirrors by its threshold (none when
         ``linear_start_max_steps`` is 0)."""
@@ -194,9 +205,26 @@ class GaussianRangeOptions(RawRangeOptions):
 
     particle_bridge: bool = True
     particle_fallback_factor: float = 1.2
+    # Recovery: when the summed NIS of the Gaussian update's last recovery_window updates
+    # exceeds the χ² quantile of 1 − recovery_probability for their summed dimensions, the
+    # run returns to the linear start (which converges from any prior), from its estimate
+    # with the covariance widened by the window's mean NIS per dimension plus the initial
+    # covariance. None: no recovery.
+    recovery_window: int | None = None
+    recovery_probability: float = 1e-4
 
     def validate(self, name: str) -> None:
         super().validate(name)
+        if self.recovery_window is not None and (
+            isinstance(self.recovery_window, bool)
+            or not isinstance(self.recovery_window, int)
+            or not 1 <= self.recovery_window <= 1000
+        ):
+            fail(f"{name}.recovery_window", "must be an integer in [1, 1000] or null",
+                 self.recovery_window)  # fmt: skip
+        if not (isinstance(self.recovery_probability, float | int)
+                and 0.0 < self.recovery_probability < 0.5):  # fmt: skip
+            fail(f"{name}.recovery_probability", "must be in (0, 0.5)", self.recovery_probability)
         if not isinstance(self.particle_bridge, bool):
             fail(f"{name}.particle_bridge", "must be true or false", self.particle_bridge)
         if not self.particle_fallback_factor >= 1.0:
@@ -205,6 +233,12 @@ class GaussianRangeOptions(RawRangeOptions):
             fail(f"{name}.handover_angle",
                  "must be set with particle_bridge (the bridge leaves the particles on it)",
                  None)  # fmt: skip
+
+    def divergence_test(self) -> DivergenceTest | None:
+        """The windowed NIS test that sends a run back to its linear start (None: off)."""
+        if self.recovery_window is None:
+            return None
+        return DivergenceTest(self.recovery_window, float(self.recovery_probability))
 
     def rule_fields(self) -> dict[str, Any]:
         return dict(
@@ -233,10 +267,30 @@ class LinearizedRangeOptions(GaussianRangeOptions):
 
 @dataclass
 class Ekf(LinearizedRangeOptions):
-    """Extended Kalman filter on both raw ranges, all f samples."""
+    """Extended Kalman filter on both raw ranges, all f samples.
+
+    ``second_order`` keeps terms of the ranges' second-order expansion that the EKF drops
+    (Gelb's truncated second-order filter): ``mean`` predicts each range as
+    ``d + tr(P⊥)/(2d)``, the mean range of the Gaussian ``N(x̂, P)``, so the estimate moves to
+    the posterior's mean inside the curved range shell instead of onto it; ``variance`` adds
+    that term's variance ``½ tr(H''P H''P)`` to the ranges' noise; ``full`` both; ``none`` the
+    first-order EKF. Measured over 200 runs each (particle bridge off), mean NEES none →
+    full: paper regime under the LQR world-frame law 9.50 → 7.41, at 14 m under it 17.2 → 9.3,
+    ``far_standoff`` 10.5 → 7.1, position RMSE equal or lower; the first-order EKF's
+    innovations are unbiased, its estimate is not (it sits on the range shell, the truth's
+    mean inside it by ``tr(P⊥)/(2d)``).
+    """
+
+    second_order: str = "none"
+
+    def validate(self, name: str) -> None:
+        super().validate(name)
+        check_choice(f"{name}.second_order", self.second_order, SECOND_ORDER_TERMS)
 
     def range_update(self) -> RangeUpdate:
-        return ekf_update
+        if self.second_order == "none":
+            return ekf_update
+        return functools.partial(ekf_update, second_order=self.second_order)
 
 
 @dataclass
