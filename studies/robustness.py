@@ -39,10 +39,11 @@ ESTIMATORS = {"ekf": "estimator=Ekf", "ukf": "estimator=Ukf", "pf": "estimator=P
 
 
 def robustness_variants() -> list[Variant]:
-    """``shipped-<scenario>`` for each shipped scenario, then ``<regime>-<estimator>``."""
+    """``robust-<scenario>`` for each shipped scenario as it ships, then
+    ``robust-<regime>-<estimator>`` (names unique among all groups' rows)."""
     rows = [
         Variant(
-            f"shipped-{name}",
+            f"robust-{name}",
             ROBUSTNESS_TITLE,
             (),
             f"{name}.yaml as shipped",
@@ -56,7 +57,7 @@ def robustness_variants() -> list[Variant]:
             own = scenario == "realistic" and estimator == "pf"  # the scenario's own filter
             rows.append(
                 Variant(
-                    f"{regime}-{estimator}",
+                    f"robust-{regime}-{estimator}",
                     ROBUSTNESS_TITLE,
                     overrides if own else (*overrides, chosen),
                     f"{regime}, {estimator}",

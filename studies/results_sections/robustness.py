@@ -79,7 +79,7 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
 
 A lost run is a vehicle lost at sea: the loops are run over many seeds, batched (one diagram
 steps a whole batch of runs), {runs} per row on the kinematic plant and {vehicle_runs}
-on the hovering UUV. Every shipped scenario runs as it ships (`shipped-*`), and the EKF, the
+on the hovering UUV. Every shipped scenario runs as it ships (`robust-<scenario>`), and the EKF, the
 UKF and the particle filter run in the paper's regime, at the far standoff (14 m), with noisy
 sonars (σ = 1 m) and in the realistic scenario on both plants. A run is lost when the
 estimator-health monitor stopped it or its final position error exceeds {LOST_ERROR:g} m. The

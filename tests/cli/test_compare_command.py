@@ -31,7 +31,7 @@ def test_an_unknown_group_exits_2_naming_the_known_ones(tmp_path, capsys, no_sim
     assert capsys.readouterr().err == (
         "drake-uuv: error: --group: unknown group 'bogus' "
         "(known: attitude_noise, alpha, estimator, tracking, vehicle, regimes, attitude, "
-        "attitude_vehicle, navigation)\n"
+        "attitude_vehicle, navigation, robustness)\n"
     )
     assert not (tmp_path / "compare.md").exists()
 

@@ -79,7 +79,9 @@ def test_output_is_the_numpy_update_and_ignores_the_random_port():
     assert_allclose(x_hat, x, rtol=1e-12, atol=1e-14)
     assert_allclose(P_hat, P, rtol=1e-10, atol=1e-15)
     assert status == VALID and nis_hat == pytest.approx(nis, rel=1e-10)
-    assert_allclose(np.reshape(system.cloud.posterior(context)[3], -1), log_post, rtol=1e-12, atol=1e-12)
+    assert_allclose(
+        np.reshape(system.cloud.posterior(context)[3], -1), log_post, rtol=1e-12, atol=1e-12
+    )
     system.GetInputPort("particle_seed").FixValue(context, [0.75])
     assert_array_equal(filtered(system, context)[0], x_hat)
 

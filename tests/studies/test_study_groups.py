@@ -35,7 +35,7 @@ VEHICLE_SPEED_BUDGET = vehicle.VEHICLE_SPEED_BUDGET
 def test_the_groups_in_order_and_the_paper_s_three_run_by_default():
     assert list(GROUPS) == [
         "attitude_noise", "alpha", "estimator", "tracking",
-        "vehicle", "regimes", "attitude", "attitude_vehicle", "navigation",
+        "vehicle", "regimes", "attitude", "attitude_vehicle", "navigation", "robustness",
     ]  # fmt: skip
     assert [name for name, group in GROUPS.items() if group.paper] == [
         "attitude_noise",
@@ -53,7 +53,7 @@ def test_the_groups_in_order_and_the_paper_s_three_run_by_default():
 def test_every_variant_loads_and_variant_names_are_unique():
     variants = [v for group in GROUPS.values() for v in group.variants()]
     names = [variant.name for variant in variants]
-    assert len(names) == len(set(names)) == 103 + 136
+    assert len(names) == len(set(names)) == 103 + 136 + 20
     for variant in variants:
         # Raises ScenarioError if not.
         load_scenario(variant.scenario or "paper", list(variant.overrides))
@@ -244,3 +244,14 @@ def test_navigation_group_s_realistic_rows_start_every_estimator_from_the_scenar
         assert type(s.plant) is plant
         if "-pf-" in name:  # the scenario's own particle filter, 20 000 particles
             assert s.estimator.particle_count == own.estimator.particle_count == 20_000
+
+
+def test_the_robustness_group_runs_every_shipped_scenario_and_a_fifth_on_the_vehicle():
+    rows = {variant.name: variant for variant in GROUPS["robustness"].variants()}
+    shipped = {name[len("robust-") :] for name in rows if name.count("-") == 1}
+    assert {"paper", "noisy_sonar", "far_standoff", "hovering_auv", "realistic"} <= shipped
+    assert rows["robust-hovering_auv"].runs(1000) == 200
+    assert rows["robust-realistic-kinematic-ekf"].runs(1000) == 1000
+    assert rows["robust-realistic-auv-pf"].overrides == ()  # the scenario's own filter
+    for name in ("robust-paper-ekf", "robust-far-ukf", "robust-noisy-pf"):
+        assert rows[name].runs(1000) == 1000
