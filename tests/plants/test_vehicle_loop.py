@@ -210,6 +210,83 @@ def test_navigation_keeps_the_filter_consistent_where_the_commanded_prediction_d
 
 @pytest.mark.slow
 def test_the_feasible_configuration_rarely_saturates_and_is_followed(motion_runs) -> None:
+    """Within the derived envelope over 60 runs of 100 steps: the rate and acceleration limits
+    held in every run; the thrusters saturated in at most 10 % of the fast ticks in the median
+    run and 15 % on average (the first steps' catch-up is much of a short run; measured 4.9 %
+    and 9.1 %, up to 36 % in one run); the applied acceleration within a quarter of the
+    0.6 m/s² limit of the command, RMS, in the median run (0.073 m/s² measured; 28 % of the
+    runs follow it to 0.001 m/s², the rest fall behind while the catch-up lasts)."""
+    m = motion_runs["commanded"][0].metrics
+    assert np.median(m["thrust_saturated_fraction"]) <= 0.1
+    assert np.mean(m["thrust_saturated_fraction"]) <= 0.15
+    assert np.max(m["angular_rate_peak"]) < 0.3 * 1.1  # the rate limit, and the overshoot
+    assert np.max(m["acceleration_peak"]) <= 0.6 + 1e-12
+    assert 0.0 < np.median(m["model_acceleration_rmse"]) < 0.25 * 0.6
+
+
+def test_the_kinematic_plant_follows_its_commands_exactly(paper) -> None:
+    scenario = load_scenario("paper", ["steps=60", "steady_state_start=10"])
+    metrics = ClosedLoopSimulation(scenario).run().metrics
+    assert metrics["model_acceleration_rmse"] < 1e-9
+    assert "thrust_saturated_fraction" not in metrics
+
+
+# The feasible configuration's runs of 100 steps, and the window after the first steps'
+# transient.
+MOTION_RUNS, MOTION_STEPS, MOTION_START = 60, 100, 20
+
+
+@pytest.fixture(scope="module")
+def motion_runs():
+    """The feasible configuration, seeds 0–59, 100 steps, each as one batch: the kinematic
+    plant and the vehicle with each ``estimator.vehicle_motion``."""
+    short = [f"steps={MOTION_STEPS}", f"steady_state_start={MOTION_START}"]
+    rows = {
+        "kinematic": "feasible-kinematic",
+        "commanded": "feasible-vehicle",
+        "navigation": "feasible-vehicle-navigation",
+    }
+    runs = {}
+    for name, row in rows.items():
+        scenario = load_scenario("paper", [*_overrides(row), *short])
+        simulation = ClosedLoopSimulation(scenario, batch_size=MOTION_RUNS)
+        runs[name] = (simulation.run_batch(range(MOTION_RUNS)), scenario)
+    return runs
+
+
+@pytest.mark.slow
+def test_navigation_keeps_the_filter_consistent_where_the_commanded_prediction_does_not(
+    motion_runs,
+) -> None:
+    """The vehicle does not always follow its commanded acceleration; in the runs where it
+    falls behind (model acceleration RMSE above 0.1 m/s²), the filter that predicts with the
+    commands falls out of consistency, while the one that takes the vehicle's state from its
+    navigation stays consistent in every run.
+
+    NEES bound from the run length: a consistent filter's NEES is χ²(6) at every step, so over
+    the window's N = 80 steps the largest exceeds the χ²(6) quantile at 1 − 0.01/N with
+    probability at most 1 % (union bound, whatever the correlation between steps; 27.3). Over
+    60 runs a consistent filter then exceeds it in 3 runs or more with probability under 2 %
+    (binomial, p = 0.01). Measured: none with navigation; the commanded filter's mean NEES
+    beyond the bound in 9 of the 10 runs that fell behind. The navigation's pooled position
+    RMSE is within the acceptance's 1.5× the kinematic plant's (0.82× measured)."""
+    (kinematic, scenario), (commanded, _), (navigation, _) = (
+        motion_runs[name] for name in ("kinematic", "commanded", "navigation")
+    )
+    window = slice(MOTION_START, None)
+    nees = {name: errors(r.log, s)["nees"][:, window] for name, (r, s) in motion_runs.items()}
+    bound = chi2_ppf(1.0 - 0.01 / nees["navigation"].shape[1], 6)
+    assert np.max(kinematic.metrics["model_acceleration_rmse"]) < 1e-9
+    assert np.sum(np.max(nees["navigation"], axis=1) > bound) < 3
+    behind = commanded.metrics["model_acceleration_rmse"] > 0.1
+    assert behind.sum() >= 3  # the vehicle falls behind its commands in some runs
+    assert np.mean(np.mean(nees["commanded"][behind], axis=1) > bound) > 0.5
+    mse = {name: np.mean(r.metrics["position_rmse"] ** 2) for name, (r, _) in motion_runs.items()}
+    assert np.sqrt(mse["navigation"] / mse["kinematic"]) <= 1.5
+
+
+@pytest.mark.slow
+def test_the_feasible_configuration_rarely_saturates_and_is_followed(motion_runs) -> None:
     """Within the derived envelope over 60 runs of 100 steps: at most 5 % of the fast ticks
     saturated in the median run and 10 % on average (the first steps' catch-up is much of a
     short run; measured 6.1 % on average, up to 36 % in one run), the rate and acceleration

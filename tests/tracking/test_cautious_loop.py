@@ -1,10 +1,10 @@
 """The cautious loop in closed loop: a seed the certainty-equivalent loop loses is kept.
 
-Seed 132 of ``realistic`` on the kinematic plant (EKF, particle bridge off, so that 100 seeds
-batch): the linear start wanders 26 m off by k = 40, the paper's certainty-equivalent law
-chases the estimate at up to 49 m/s and the EKF's innovations blow up at k = 88. Holding
-station until the hand-over, within a 0.76 m/s top speed, it ends 0.7 m off (a batch search
-over seeds 0–199; the UKF loses the same seed the same way).
+Seed 153 of ``realistic`` on the kinematic plant (EKF, particle bridge off, so that 200 seeds
+batch): the paper's certainty-equivalent law chases the linear start's estimate at up to
+46 m/s and the EKF's innovations blow up. Holding station until the hand-over, within a
+0.76 m/s top speed, it ends 0.12 m off (a batch search over seeds 0–199: 4 runs lost by the
+certainty-equivalent loop, 1 by the cautious one, seed 62, whose filter diverges later).
 """
 
 import numpy as np
@@ -12,7 +12,7 @@ import pytest
 
 from drake_uuv import ClosedLoopSimulation, load_scenario
 
-SEED = 132
+SEED = 153
 LOOP = ["plant=KinematicUuv", "estimator=Ekf", "estimator.particle_bridge=false"]
 CERTAINTY_EQUIVALENT = ["tracking.hold_until_handover=false", "tracking.max_speed=null"]
 CAUTIOUS = ["tracking.hold_until_handover=true", "tracking.max_speed=0.76"]

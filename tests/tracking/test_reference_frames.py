@@ -15,7 +15,7 @@ from drake_uuv.models.tracking_laws import (
     reference_rotation,
 )
 from drake_uuv.scenario import LqrTracking, PaperTracking, ScenarioError, load_scenario
-from drake_uuv.simulation import simulate
+from drake_uuv.simulation import ClosedLoopSimulation
 from drake_uuv.testing import fixed_context
 from drake_uuv.tracking import TrackingSetting
 from tests.conftest import T
@@ -87,13 +87,23 @@ def test_lqr_in_the_world_frame_has_no_feedforward_from_turning() -> None:
 
 @pytest.mark.slow
 def test_a_far_standoff_is_trackable_in_the_world_frame_but_not_in_the_body_frame() -> None:
-    """14 m standoff under Algorithm 2: the body-fixed point sweeps a 14 m circle every 24 s."""
+    """14 m standoff under Algorithm 2: the body-fixed point sweeps a 14 m circle every 24 s.
+    Seeds 0–19, each frame as one batch: in the world frame every run's tracking RMSE is below
+    0.8× the body frame's and the pooled one below 0.7× (0.46–0.71 and 0.62 measured), and the
+    relative speed's peak below a fifth of the body frame's (at most 0.08× measured)."""
     common = ["tracking=!LqrTracking", "tracking.desired_relative_position=[-10, -10, 0]",
               "steps=300", "steady_state_start=100"]  # fmt: skip
-    world = simulate(load_scenario("paper", [*common, "tracking.reference_frame=world"], seed=2))
-    body = simulate(load_scenario("paper", common, seed=2))
-    assert world.metrics["tracking_rmse"] < 0.5 * body.metrics["tracking_rmse"]
-    assert world.metrics["relative_speed_peak"] < 0.5 * body.metrics["relative_speed_peak"]
+    metrics = {}
+    for frame, extra in (("world", ["tracking.reference_frame=world"]), ("body", [])):
+        simulation = ClosedLoopSimulation(
+            load_scenario("paper", [*common, *extra]), log="metrics", batch_size=20
+        )
+        metrics[frame] = simulation.run_batch(range(20)).metrics
+    world, body = metrics["world"], metrics["body"]
+    assert np.all(world["tracking_rmse"] < 0.8 * body["tracking_rmse"])
+    pooled = np.sqrt(np.mean(world["tracking_rmse"] ** 2) / np.mean(body["tracking_rmse"] ** 2))
+    assert pooled < 0.7
+    assert np.all(world["relative_speed_peak"] < 0.2 * body["relative_speed_peak"])
 
 
 def test_bad_frame_is_named() -> None:
