@@ -69,6 +69,9 @@ class WallTimeEstimate:
     costs: dict[Configuration, tuple[float, int]]
     # Local worker processes; None on a Dask cluster (its size is known only once connected).
     workers: int | None
+    # Runs of all the variants, computed or not (variants × runs_per_variant, unless some
+    # variants run a share of the runs).
+    total_runs: int | None = None
 
     @property
     def run_seconds(self) -> float:
@@ -107,6 +110,7 @@ def estimate_wall_time(
         runs=sum(counts.values()),
         costs=costs,
         workers=workers,
+        total_runs=sum(study.runs for study in studies),
     )
 
 
@@ -126,9 +130,13 @@ def _count(n: int, noun: str) -> str:
 
 def format_estimate(estimate: WallTimeEstimate) -> str:
     """The lines ``drake-uuv compare`` prints before it starts."""
-    total = estimate.variants * estimate.runs_per_variant
+    total = estimate.total_runs
+    if total is None:
+        total = estimate.variants * estimate.runs_per_variant
     head = f"{_count(estimate.runs, 'run')} to compute ({_count(estimate.variants, 'variant')}"
     head += f" × {_count(estimate.runs_per_variant, 'run')}"
+    if total != estimate.variants * estimate.runs_per_variant:
+        head += f" or a share of them, {total} in all"
     head += ")" if estimate.runs == total else f", {total - estimate.runs} on disk already)"
     if not estimate.runs:
         return head
