@@ -37,9 +37,10 @@ from drake_uuv.estimators.contract import (
 from drake_uuv.estimators.linear_start import LinearStart
 from drake_uuv.estimators.particle_cloud import ParticleCloud
 from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
-from drake_uuv.models.filter_runs import range_difference_update_runs, range_update_runs
+from drake_uuv.models.filter_runs import range_difference_update_runs
 from drake_uuv.models.handover import HandoverPolicy, Phase, PhaseEvidence
 from drake_uuv.models.measurement import VALID
+from drake_uuv.models.raw_range_runs import range_update_runs
 from drake_uuv.primitives.batch import per_run, tiled
 from drake_uuv.primitives.signal import Signal
 from drake_uuv.scenario.estimators import RawRangeOptions
