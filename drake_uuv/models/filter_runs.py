@@ -359,7 +359,7 @@ def _prior_share_update(S, P, q_s, gamma, mask, out):
 def prior_share_update_runs(
     S: np.ndarray, P: np.ndarray, q_s: np.ndarray, gamma: np.ndarray, mask: np.ndarray
 ) -> np.ndarray:
-    """:func:`~drake_uuv.models.handover.prior_share_update` of each run in ``mask``."""
+    """:func:`~drake_uuv.models.handover_measures.prior_share_update` of each run in ``mask``."""
     out = np.empty(S.shape)
     _prior_share_update(S, P, q_s, gamma, mask, out)
     return out
