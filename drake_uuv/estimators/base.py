@@ -195,7 +195,7 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
         update was applied). Override it to advance state of your own; call
         ``super().advance`` (or :meth:`write_prediction`) for groups 0 and 1. With late ranges
         the state is the belief at the window's anchor instead, moved one step on
-        (:meth:`anchor_advance`).
+        (:meth:`~drake_uuv.estimators.late_ranges.LateRanges.anchor_advance`).
         """
         if self._window is None:
             prediction = self.predicted(context, filtered.x, filtered.P)
