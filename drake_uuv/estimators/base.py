@@ -7,6 +7,7 @@ scenario. A variant supplies one hook, :meth:`RelativeStateEstimator.measurement
 may override :meth:`RelativeStateEstimator.advance` for state of its own; it reads and writes
 the shared estimate only through the public accessors (:meth:`~RelativeStateEstimator.prior`,
 :meth:`~RelativeStateEstimator.predicted`, :meth:`~RelativeStateEstimator.write_prediction`).
+Its steps with late ranges (the ping window) are its base :mod:`~drake_uuv.estimators.late_ranges`.
 """
 
 import math
@@ -30,8 +31,9 @@ from drake_uuv.estimators.contract import (
     Ranges,
 )
 from drake_uuv.estimators.error_model import ErrorModel, ideal_model
+from drake_uuv.estimators.late_ranges import LateRanges
 from drake_uuv.estimators.ping_window import PingWindow
-from drake_uuv.estimators.timed_step import NO_UPDATE, StepOutcome, gaussian_step
+from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
 from drake_uuv.estimators.vehicle_motion import VEHICLE_MOTIONS
 from drake_uuv.models.filter_runs import predict_runs
 from drake_uuv.models.measurement import GATED, NO_ARRIVAL, VALID
@@ -41,7 +43,7 @@ from drake_uuv.primitives.batch import batch_size_field, per_run, tiled
 from drake_uuv.scenario.estimators import EstimatorOptions
 
 
-class RelativeStateEstimator(LeafSystem):
+class RelativeStateEstimator(LateRanges, LeafSystem):
     """Base of the estimators of ``Υ = [q, ϑ]``; a variant supplies the measurement update.
 
     Timing (the paper's): the filtered estimate ``Υ̂(k|k)`` of step k is a direct-feedthrough
@@ -160,15 +162,7 @@ class RelativeStateEstimator(LeafSystem):
             ),
             self._tickets([self._samples_port, self._status_port, self._attitude_port]),
         )
-        self._window = None
-        if not self._error_model.schedule.immediate:
-            self._window = PingWindow(
-                self, self._error_model.schedule, self._f, self._attitude_port,
-                self.vehicle_motion.state_ports or [self.vehicle_motion.acceleration_port],
-                navigated,
-            )  # fmt: skip
-            self._stepped = self._declare_window_cache("ranges arrived by this tick", True)
-            self._stepped_before = self._declare_window_cache("ranges arrived before", False)
+        self._window = self._declare_window(navigated)
         empty = FilteredEstimate(
             np.zeros((B, 6)), np.zeros((B, 6, 6)), np.zeros(B), np.full(B, np.nan)
         )
@@ -180,22 +174,7 @@ class RelativeStateEstimator(LeafSystem):
             ),
             self.depends_on_measurement(),
         )
-        depends = {self._filtered.ticket()}
-        self.DeclareVectorOutputPort("x_TU_hat", B * 6, self._calc_x_hat, depends)
-        self.DeclareVectorOutputPort("P_TU", B * 36, self._calc_P, depends)
-        if self._window is not None:  # the belief stepped through the window's earlier ranges
-            before = {self._stepped_before.ticket()}
-            self.DeclareVectorOutputPort("x_TU_prior", B * 6, self._calc_prior_before, before)
-            self.DeclareVectorOutputPort("P_TU_prior", B * 36, self._calc_P_prior_before, before)
-        elif self.vehicle_motion.state_ports:
-            prior_tickets = {self.xd_ticket(), *self._tickets(self.vehicle_motion.state_ports)}
-            self.DeclareVectorOutputPort("x_TU_prior", B * 6, self._calc_prior, prior_tickets)
-            self.DeclareStateOutputPort("P_TU_prior", self._P_index)
-        else:
-            self.DeclareStateOutputPort("x_TU_prior", self._x_index)
-            self.DeclareStateOutputPort("P_TU_prior", self._P_index)
-        self.DeclareVectorOutputPort("measurement_status", B, self._calc_status, depends)
-        self.DeclareVectorOutputPort("nis", B, self._calc_nis, depends)
+        self._declare_outputs()
         self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
 
     # ------------------------------------------------------------------ hooks for a variant
@@ -216,7 +195,7 @@ class RelativeStateEstimator(LeafSystem):
         update was applied). Override it to advance state of your own; call
         ``super().advance`` (or :meth:`write_prediction`) for groups 0 and 1. With late ranges
         the state is the belief at the window's anchor instead, moved one step on
-        (:meth:`anchor_advance`).
+        (:meth:`~drake_uuv.estimators.late_ranges.LateRanges.anchor_advance`).
         """
         if self._window is None:
             prediction = self.predicted(context, filtered.x, filtered.P)
@@ -296,14 +275,6 @@ class RelativeStateEstimator(LeafSystem):
         x = per_run(context.get_discrete_state(self._x_index).get_value(), B)
         P = per_run(context.get_discrete_state(self._P_index).get_value(), B, 6, 6)
         return Estimate(x, P)
-
-    def anchor_advance(self, context: Context) -> StepOutcome | None:
-        """The window's anchor moved one step on: its oldest step, whose ranges have all
-        arrived (None until the window is full)."""
-        _, _, outcomes = self._stepped.Eval(context)
-        if self._window.tick(context) < self._window.schedule.window:
-            return None
-        return outcomes[0]
 
     def set_prior(self, context: Context, x: np.ndarray, P: np.ndarray) -> None:
         """Sets this step's predictions ``Υ̂(k|k−1)`` ((B, 6); (6) for every run) and
@@ -427,6 +398,26 @@ class RelativeStateEstimator(LeafSystem):
     def _tickets(ports: list[InputPort]) -> set:
         return {port.ticket() for port in ports}
 
+    def _declare_outputs(self) -> None:
+        """The output ports (see the class notes), of the filtered estimate's cache entry."""
+        B = self.batch_size
+        depends = {self._filtered.ticket()}
+        self.DeclareVectorOutputPort("x_TU_hat", B * 6, self._calc_x_hat, depends)
+        self.DeclareVectorOutputPort("P_TU", B * 36, self._calc_P, depends)
+        if self._window is not None:  # the belief stepped through the window's earlier ranges
+            before = {self._stepped_before.ticket()}
+            self.DeclareVectorOutputPort("x_TU_prior", B * 6, self._calc_prior_before, before)
+            self.DeclareVectorOutputPort("P_TU_prior", B * 36, self._calc_P_prior_before, before)
+        elif self.vehicle_motion.state_ports:
+            prior_tickets = {self.xd_ticket(), *self._tickets(self.vehicle_motion.state_ports)}
+            self.DeclareVectorOutputPort("x_TU_prior", B * 6, self._calc_prior, prior_tickets)
+            self.DeclareStateOutputPort("P_TU_prior", self._P_index)
+        else:
+            self.DeclareStateOutputPort("x_TU_prior", self._x_index)
+            self.DeclareStateOutputPort("P_TU_prior", self._P_index)
+        self.DeclareVectorOutputPort("measurement_status", B, self._calc_status, depends)
+        self.DeclareVectorOutputPort("nis", B, self._calc_nis, depends)
+
     def _start_in_stored_frame(self, context: Context, discrete_state: DiscreteValues) -> None:
         """At initialization: group 0 becomes ``Υ̂(0|−1) − offset``."""
         x0 = per_run(context.get_discrete_state(self._x_index).get_value(), self.batch_size)
@@ -487,97 +478,13 @@ class RelativeStateEstimator(LeafSystem):
         first = ranges.status[:, 0]
         return np.where(first != VALID, first, ranges.status[:, 1])
 
-    def _with_window_updates(
-        self, context: Context, estimate: FilteredEstimate, update: MeasurementUpdate | None
-    ) -> None:
-        """Status and NIS of each run at a tick with late ranges: of the ranges that arrived at
-        it (the window's instants that hold one, and this tick's own)."""
-        B = self.batch_size
-        updated_now = np.zeros(B, dtype=bool) if update is None else update.updated
-        _, _, outcomes = self._stepped.Eval(context)
-        applied_nis, applied = np.zeros(B), np.zeros(B, dtype=bool)
-        news_nis, news = np.zeros(B), np.zeros(B, dtype=bool)
-        for u in (u for o in outcomes for u in o.updates):
-            present = u.new & (u.status != NO_UPDATE)
-            valid = present & (u.status == VALID)
-            applied_nis = applied_nis + np.where(valid, u.nis, 0.0)
-            applied |= valid
-            news_nis = news_nis + np.where(present, u.nis, 0.0)
-            news |= present
-        now = (estimate.status == VALID) & updated_now
-        applied_nis = applied_nis + np.where(now, estimate.nis, 0.0)
-        applied |= now
-        waiting = (estimate.status == VALID) & ~updated_now
-        status = np.where(waiting, self.arrival_status(context), estimate.status)
-        status = np.where(news, float(GATED), status)
-        estimate.status = np.where(applied, float(VALID), status)
-        nis = np.where(news, news_nis, estimate.nis)
-        estimate.nis = np.where(applied, applied_nis, nis)
-
-    def arrival_status(self, context: Context) -> np.ndarray:
-        """Each run's status of a tick without an update (B): the first code of the sonars
-        whose range arrived unusable, or NO_ARRIVAL when none arrived."""
-        status = per_run(self._status_port.Eval(context), self.batch_size)
-        invalid = (status != NO_ARRIVAL) & (status != VALID)
-        later = np.where(invalid[:, 1], status[:, 1], float(NO_ARRIVAL))
-        return np.where(invalid[:, 0], status[:, 0], later)
-
-    def window_outcomes(self, context: Context) -> list[StepOutcome]:
-        """The window steps' outcomes at this tick (empty with the paper's timing)."""
-        return [] if self._window is None else self._stepped.Eval(context)[2]
-
-    def _declare_window_cache(self, description: str, include_now: bool):
-        ports = [
-            self._attitude_port, *self.vehicle_motion.state_ports,
-            *(self._window.input_ports if include_now else []),
-            *([self._samples_port, self._status_port] if include_now else []),
-        ]  # fmt: skip
-        return self.DeclareCacheEntry(
-            description,
-            ValueProducer(
-                allocate=AbstractValue.Make((np.zeros(0), np.zeros(0), [])).Clone,
-                calc=lambda context, value: value.set_value(
-                    self._step_window(context, include_now)
-                ),
-            ),
-            self._tickets(ports) | {self.xd_ticket()},
-        )
-
-    def _step_window(self, context: Context, include_now: bool) -> tuple:
-        """``(x, P, outcomes)``: the anchors stepped through the window (stored frame)."""
-        B, f = self.batch_size, self._f
-        if include_now:
-            samples = per_run(self._samples_port.Eval(context), B, 2, f)
-            status = per_run(self._status_port.Eval(context), B)
-        else:
-            samples, status = np.full((B, 2, f), np.nan), np.full((B, 2), float(NO_ARRIVAL))
-        steps, _ = self._window.steps(context, samples, status)
-        anchor = self.anchor(context)
-        x, P = anchor.x, anchor.P
-        outcomes = []
-        for step in steps:
-            outcome = self.step_belief(context, x, P, step)
-            x, P = outcome.x, outcome.P
-            outcomes.append(outcome)
-        return x, P, outcomes
-
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         self.advance(context, self._filtered.Eval(context), discrete_state)
         if self._window is not None:
-            B = self.batch_size
-            samples = per_run(self._samples_port.Eval(context), B, 2, self._f)
-            status = per_run(self._status_port.Eval(context), B)
-            self._window.record(context, discrete_state, samples, status)
+            self._record_window(context, discrete_state)
 
     def _calc_prior(self, context: Context, output: BasicVector) -> None:
         output.set_value(self.prior(context).x.ravel())
-
-    def _calc_prior_before(self, context: Context, output: BasicVector) -> None:
-        x, _, _ = self._stepped_before.Eval(context)
-        output.set_value(self.vehicle_motion.prior(context, x).ravel())
-
-    def _calc_P_prior_before(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._stepped_before.Eval(context)[1].ravel())
 
     def _calc_x_hat(self, context: Context, output: BasicVector) -> None:
         output.set_value(self._filtered.Eval(context).x.ravel())

@@ -36,10 +36,12 @@ from drake_uuv.estimators.contract import (
 )
 from drake_uuv.estimators.linear_start import LinearStart
 from drake_uuv.estimators.particle_cloud import ParticleCloud
+from drake_uuv.estimators.run_of_one import RunOfOne
 from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
-from drake_uuv.models.filter_runs import range_difference_update_runs, range_update_runs
+from drake_uuv.models.filter_runs import range_difference_update_runs
 from drake_uuv.models.handover import HandoverPolicy, Phase, PhaseEvidence
 from drake_uuv.models.measurement import VALID
+from drake_uuv.models.raw_range_runs import range_update_runs
 from drake_uuv.primitives.batch import per_run, tiled
 from drake_uuv.primitives.signal import Signal
 from drake_uuv.scenario.estimators import RawRangeOptions
@@ -144,7 +146,7 @@ class RangeFilter(RelativeStateEstimator):
                     f"run at a time for now, got {B}"
                 )
             # Late ranges: the cloud steps one run through the window's single-run view.
-            host = self if self.window is None else _RunOfOne(self)
+            host = self if self.window is None else RunOfOne(self)
             self._cloud = ParticleCloud(host, config.particle_parameters(), self._R, batch_size=B)
         self._dof_linear = np.ones(B, dtype=np.intp)
         self._divergence = config.divergence_test()
@@ -414,69 +416,3 @@ _RECOVERY_SIGNAL = Signal(
     "a Gaussian range filter's returns to its linear start so far, and the last one's "
     "reason: its window's summed NIS, the χ² threshold it exceeded, the summed dimensions",
 )  # fmt: skip
-
-
-class _RunOfOne:
-    """The host as the particle cloud reads it while the cloud steps one run: the filter
-    itself, its batch of one seen without the run axis (ranges, prior, vehicle motion and
-    the navigation's process noise); everything else, declarations included, is the
-    filter's."""
-
-    def __init__(self, host: RangeFilter) -> None:
-        object.__setattr__(self, "_host", host)
-        object.__setattr__(self, "vehicle_motion", _MotionOfOne(host.vehicle_motion))
-
-    def __getattr__(self, name: str):
-        return getattr(self._host, name)
-
-    def __setattr__(self, name: str, value) -> None:
-        setattr(self._host, name, value)
-
-    @property
-    def window(self):
-        window = self._host.window
-        return None if window is None else _WindowOfOne(window)
-
-    def ranges(self, context: Context) -> Ranges:
-        return self._host.ranges(context).run(0)
-
-    def prior(self, context: Context) -> Estimate:
-        prior = self._host.prior(context)
-        return Estimate(prior.x[0], prior.P[0])
-
-    def navigation_process_noise(self, context: Context) -> np.ndarray | None:
-        Q = self._host.navigation_process_noise(context)
-        return None if Q is None else Q[0]
-
-
-class _MotionOfOne:
-    """A vehicle-motion strategy's values of run 0, without the run axis."""
-
-    def __init__(self, motion) -> None:
-        self._motion = motion
-
-    @property
-    def state_ports(self):
-        return self._motion.state_ports
-
-    def offset(self, context: Context) -> np.ndarray:
-        return self._motion.offset(context)[0]
-
-    def acceleration(self, context: Context) -> np.ndarray:
-        return self._motion.acceleration(context)[0]
-
-
-class _WindowOfOne:
-    """The ping window's steps of run 0, without the run axis (the particle cloud's view)."""
-
-    def __init__(self, window) -> None:
-        self._window = window
-
-    def __getattr__(self, name: str):
-        return getattr(self._window, name)
-
-    def steps(self, context: Context, samples: np.ndarray, status: np.ndarray):
-        steps, current = self._window.steps(
-            context, samples[np.newaxis], np.asarray(status)[np.newaxis]
-        )
-        return [step.run(0) for step in steps], current[0]

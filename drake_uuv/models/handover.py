@@ -10,19 +10,21 @@ replaces it with two tests on the KF's own estimate and covariance after each li
 1. **The prior is forgotten**: ``tr(S_qq) ≤ prior_share · tr(P_qq)``, where ``S = Φ P0 Φᵀ``
    is the part of the KF's covariance that still comes from its prior (``Φ`` the KF's error
    transition since step 0: ``S ← A S Aᵀ`` at a prediction, ``S ← (I − K C) S (I − K C)ᵀ`` at
-   an update; :func:`prior_share_predict`, :func:`prior_share_update`). The scenario's prior
+   an update; :func:`~drake_uuv.models.handover_measures.prior_share_predict`,
+   :func:`~drake_uuv.models.handover_measures.prior_share_update`). The scenario's prior
    ``x̂0 = 0``, ``P0 = I`` is three standard deviations from the truth (``|q| ≈ 3 m``), so
    until the data outweigh it the KF's covariance understates its error and no test on that
    covariance can be trusted.
 2. **The Gaussian is narrow against the range**: for each sonar,
    ``θᵢ = √tr(P⊥ᵢ) / dᵢ ≤ angle_tolerance``, with ``P⊥ᵢ`` the position covariance across
    the line of sight ``uᵢ`` (``tr P⊥ = tr P_qq − uᵢᵀ P_qq uᵢ``) and ``dᵢ`` the range, both at
-   the estimate (:func:`cross_range_angle`). A range filter with a Gaussian posterior is
-   only valid while the angular spread of the target's direction is small: beyond it the
-   posterior is a curved shell and, as the baseline turns, can split into the two-range
-   circle's mirror images, on which an EKF or UKF locks. In terms of the linearisation
-   error: the second-order range term a linearisation drops is ``tr(P⊥)/(2d) = θ² d / 2``,
-   so the test bounds it by a fraction of the *range*, not of the range noise.
+   the estimate (:func:`~drake_uuv.models.handover_measures.cross_range_angle`). A range
+   filter with a Gaussian posterior is only valid while the angular spread of the target's
+   direction is small: beyond it the posterior is a curved shell and, as the baseline turns,
+   can split into the two-range circle's mirror images, on which an EKF or UKF locks. In
+   terms of the linearisation error: the second-order range term a linearisation drops is
+   ``tr(P⊥)/(2d) = θ² d / 2``, so the test bounds it by a fraction of the *range*, not of
+   the range noise.
 
 Hand-over happens after the update at which both hold (and at least ``min_linear_steps``
 updates were linear), or unconditionally after ``max_linear_steps`` linear updates if set.
@@ -60,7 +62,18 @@ from typing import NamedTuple, Protocol
 import numpy as np
 from numba import njit
 
-_I6 = np.eye(6)
+from drake_uuv.models.handover_measures import (
+    _one_run,
+    _trace_qq,
+    cross_range_angle_runs,
+    second_order_range_error_runs,
+)
+
+# Re-exported: the measures the tests read are importable from here, as before.
+from drake_uuv.models.handover_measures import cross_range_angle as cross_range_angle
+from drake_uuv.models.handover_measures import prior_share_predict as prior_share_predict
+from drake_uuv.models.handover_measures import prior_share_update as prior_share_update
+from drake_uuv.models.handover_measures import second_order_range_error as second_order_range_error
 
 
 class Phase(IntEnum):
@@ -85,7 +98,8 @@ class PhaseEvidence:
     ``q_s`` (B, 3)). ``x``, ``P``: the step's filtered estimate; ``nis`` its update's NIS;
     ``linear_updates``:
     linear updates applied so far (this one included); ``prior_share``: the prior's share
-    ``S`` of the linear KF's covariance (:func:`prior_share_update`); ``q_s``: the world
+    ``S`` of the linear KF's covariance
+    (:func:`~drake_uuv.models.handover_measures.prior_share_update`); ``q_s``: the world
     baseline; ``noise_std``: the per-sonar ``√(η/f)`` of the range means; ``gaussian``: the
     filter has a Gaussian range update; ``particles``: it can carry particles.
     """
@@ -213,86 +227,6 @@ class ThresholdHandover:
 LOST_NIS = 2.0 * math.log(1e6)
 
 
-def cross_range_angle_runs(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> np.ndarray:
-    """:func:`cross_range_angle` of each run: ``x`` (B, 6), ``P`` (B, 6, 6), ``q_s`` (B, 3);
-    returns (B, 2) [rad]."""
-    q = x[:, :3]
-    half = 0.5 * q_s
-    r = np.stack([q + half, q - half], axis=1)  # (B, 2, 3)
-    P_qq = P[:, :3, :3]
-    trace = P_qq[:, 0, 0] + P_qq[:, 1, 1] + P_qq[:, 2, 2]
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        d = np.sqrt((r * r).sum(axis=2))
-        u = r / d[:, :, np.newaxis]
-        across = trace[:, np.newaxis] - ((u @ P_qq) * u).sum(axis=2)
-        angle = np.sqrt(np.maximum(across, 0.0)) / d
-    return np.where(d < 1e-9, math.inf, angle)
-
-
-def cross_range_angle(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> np.ndarray:
-    """``θᵢ = √tr(P⊥ᵢ) / dᵢ`` for both sonars (shape (2,)) [rad].
-
-    ``dᵢ = |q ± ½ q_s|`` and the line of sight ``uᵢ`` at the estimate ``q = x[:3]``;
-    ``tr P⊥ᵢ = tr P_qq − uᵢᵀ P_qq uᵢ`` the position variance across it. A range below 1 nm
-    gives an infinite angle.
-    """
-    x, P, q_s = _one_run(x, P, q_s)
-    return cross_range_angle_runs(x, P, q_s)[0]
-
-
-def _one_run(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> tuple:
-    return (
-        np.asarray(x, dtype=float).reshape(1, 6),
-        np.asarray(P, dtype=float).reshape(1, 6, 6),
-        np.asarray(q_s, dtype=float).reshape(1, 3),
-    )
-
-
-def second_order_range_error_runs(
-    x: np.ndarray, P: np.ndarray, q_s: np.ndarray, angles: np.ndarray | None = None
-) -> np.ndarray:
-    """:func:`second_order_range_error` of each run (B, 2) [m] (``angles``: the runs'
-    :func:`cross_range_angle_runs`, when known)."""
-    if angles is None:
-        angles = cross_range_angle_runs(x, P, q_s)
-    q = x[:, :3]
-    half = 0.5 * q_s
-    r = np.stack([q + half, q - half], axis=1)
-    return 0.5 * angles * angles * np.sqrt((r * r).sum(axis=2))
-
-
-def second_order_range_error(x: np.ndarray, P: np.ndarray, q_s: np.ndarray) -> np.ndarray:
-    """``tr(P⊥ᵢ)/(2 dᵢ)`` for both sonars (shape (2,)) [m]: the mean of the quadratic term of
-    ``d(q + e) = d + uᵀe + (|e|² − (uᵀe)²)/(2d) + …`` under ``e ~ N(0, P_qq)``, the range a
-    linearisation at the estimate drops (``= θ² d / 2`` with :func:`cross_range_angle`)."""
-    return second_order_range_error_runs(*_one_run(x, P, q_s))[0]
-
-
-def _trace_qq(P: np.ndarray) -> np.ndarray:
-    return P[:, 0, 0] + P[:, 1, 1] + P[:, 2, 2]
-
-
-def prior_share_predict(S: np.ndarray, A: np.ndarray) -> np.ndarray:
-    """The prior's share of the covariance through a prediction: ``A S Aᵀ`` (no process noise)."""
-    return A @ S @ A.T
-
-
-def prior_share_update(
-    S: np.ndarray, P_filtered: np.ndarray, q_s: np.ndarray, Gamma: float
-) -> np.ndarray:
-    """Through the linear KF's update on ``Y = q_sᵀ q + v̄``: ``(I − K C) S (I − K C)ᵀ``.
-
-    ``C = [q_sᵀ, 0]``; ``K = P Cᵀ Γ⁻¹`` from the KF's covariance *after* the update, which for
-    the KF's gain ``K = P⁻ Cᵀ (C P⁻ Cᵀ + Γ)⁻¹`` is the same gain.
-    """
-    q_s = np.asarray(q_s, dtype=float).reshape(3)
-    K = np.asarray(P_filtered, dtype=float)[:, :3] @ q_s / float(Gamma)
-    I_KC = _I6.copy()
-    I_KC[:, :3] -= K[:, None] * q_s
-    S = I_KC @ np.asarray(S, dtype=float) @ I_KC.T
-    return 0.5 * (S + S.T)
-
-
 @dataclass(frozen=True)
 class HandoverRule:
     """The hand-over from the linear-KF start to the raw ranges (see the module docstring).
@@ -381,7 +315,7 @@ class HandoverRule:
         angles: np.ndarray | None = None,
     ) -> np.ndarray:
         """:meth:`gaussian_holds` of each run (``angles``: their
-        :func:`cross_range_angle_runs`, when known)."""
+        :func:`~drake_uuv.models.handover_measures.cross_range_angle_runs`, when known)."""
         holds = np.ones(len(x), dtype=bool)
         if self.angle_tolerance is None and self.second_order_tolerance is None:
             return holds

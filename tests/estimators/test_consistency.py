@@ -7,9 +7,9 @@ import pytest
 
 from drake_uuv import ClosedLoopSimulation, load_scenario
 from drake_uuv.models.divergence import DivergenceTest
-from drake_uuv.models.filter_runs import ekf_update_runs
 from drake_uuv.models.filters import ekf_update, second_order_range_terms
 from drake_uuv.models.handover import Phase
+from drake_uuv.models.raw_range_runs import ekf_update_runs
 from drake_uuv.models.statistics import chi2_ppf
 from drake_uuv.scenario import Ekf, Ukf
 from drake_uuv.scenario.validation import ScenarioError

@@ -6,6 +6,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from drake_uuv.models import filter_runs as fr
+from drake_uuv.models import raw_range_runs as rr
 from drake_uuv.models.filters import (
     ekf_update,
     iekf_update,
@@ -45,9 +46,9 @@ SINGLE = {
     "ukf": ukf_range_update,
 }
 BATCHED = {
-    "ekf": fr.ekf_update_runs,
-    "iekf": fr.iekf_update_runs,
-    "ukf": fr.range_update_runs(ukf_range_update),
+    "ekf": rr.ekf_update_runs,
+    "iekf": rr.iekf_update_runs,
+    "ukf": rr.range_update_runs(ukf_range_update),
 }
 
 
@@ -171,6 +172,6 @@ def test_the_late_range_helpers_over_runs_are_each_runs() -> None:
 
 def test_an_unknown_range_update_has_no_batched_counterpart() -> None:
     with pytest.raises(ValueError, match=r"^range_update: no batched counterpart of"):
-        fr.range_update_runs(lambda *args: None)
+        rr.range_update_runs(lambda *args: None)
     with pytest.raises(ValueError, match=r"^estimator.noise_model: must be derived or paper"):
         fr.noise_model_code("exact")

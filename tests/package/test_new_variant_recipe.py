@@ -274,6 +274,10 @@ DRIFTING = Recipe(
             def validate(self, name: str) -> None:
                 if len(self.current) != 3:
                     raise ScenarioError(f"{name}.current: must be 3 numbers, got {self.current!r}")
+
+            def top_speed(self) -> float | None:
+                """None: the plant enforces no top speed."""
+                return None
         ''',
     union="PlantConfig",
     factory_file="drake_uuv/plants/factory.py",
