@@ -147,8 +147,6 @@ def format_group_list(groups: Mapping[str, Group], runs: int) -> str:
     lines = [f"{'group':<{width}}  variants  {'runs':>6}  description"]
     for name, group in groups.items():
         label = name + ("*" if group.paper else "")
-        lines.append(
-            f"{label:<{width}}  {counts[name]:>8}  {total[name]:>6}  {group.description}"
-        )
+        lines.append(f"{label:<{width}}  {counts[name]:>8}  {total[name]:>6}  {group.description}")
     lines.append(f"runs at --runs {runs}; * the paper's groups, run when no --group is given")
     return "\n".join(lines)
