@@ -22,6 +22,7 @@ from drake_uuv.estimators.base import (
 from drake_uuv.estimators.factory import ESTIMATORS, estimator_setting, make_estimator
 from drake_uuv.estimators.kalman_filter import RangeDifferenceKalmanFilter
 from drake_uuv.estimators.linear_start import LinearStart
+from drake_uuv.estimators.marginalized_cloud import MarginalizedCloud, MarginalizedRangeFilter
 from drake_uuv.estimators.particle_cloud import ParticleCloud
 from drake_uuv.estimators.range_filter import RangeFilter
 
@@ -31,6 +32,8 @@ __all__ = [
     "EstimatorSetting",
     "FilteredEstimate",
     "LinearStart",
+    "MarginalizedCloud",
+    "MarginalizedRangeFilter",
     "MeasurementUpdate",
     "ParticleCloud",
     "RangeDifferenceKalmanFilter",

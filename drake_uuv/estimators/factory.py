@@ -4,10 +4,12 @@ import numpy as np
 
 from drake_uuv.estimators.base import EstimatorSetting, RelativeStateEstimator
 from drake_uuv.estimators.kalman_filter import RangeDifferenceKalmanFilter
+from drake_uuv.estimators.marginalized_cloud import MarginalizedRangeFilter
 from drake_uuv.estimators.range_filter import RangeFilter
 from drake_uuv.models.timing import PingSchedule
 from drake_uuv.primitives.variant_table import variant_system
 from drake_uuv.scenario import Ekf, Iekf, PaperKf, ParticleFilter, Scenario, Ukf
+from drake_uuv.scenario.estimators import MarginalizedParticleFilter
 
 #: Variant dataclass → the class of its system, built as
 #: ``cls(config, setting=..., batch_size=B)``.
@@ -17,6 +19,7 @@ ESTIMATORS: dict[type, type[RelativeStateEstimator]] = {
     Iekf: RangeFilter,
     Ukf: RangeFilter,
     ParticleFilter: RangeFilter,
+    MarginalizedParticleFilter: MarginalizedRangeFilter,
 }
 
 

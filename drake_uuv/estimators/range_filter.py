@@ -115,6 +115,9 @@ class RangeFilter(RelativeStateEstimator):
         ),
     )  # fmt: skip
 
+    #: The particle phase's cloud (a subclass may carry another: the marginalised one).
+    cloud_type: type[ParticleCloud] = ParticleCloud
+
     def __init__(
         self, config: RawRangeOptions, *, setting: EstimatorSetting, batch_size: int = 1
     ) -> None:
@@ -147,7 +150,7 @@ class RangeFilter(RelativeStateEstimator):
                 )
             # Late ranges: the cloud steps one run through the window's single-run view.
             host = self if self.window is None else RunOfOne(self)
-            self._cloud = ParticleCloud(host, config.particle_parameters(), self._R, batch_size=B)
+            self._cloud = self.cloud_type(host, config.particle_parameters(), self._R, batch_size=B)
         self._dof_linear = np.ones(B, dtype=np.intp)
         self._divergence = config.divergence_test()
         if self._divergence is not None:

@@ -325,5 +325,15 @@ class ParticleFilter(RawRangeOptions):
                  "must not be 0: the particles are drawn from the linear start", 0)  # fmt: skip
 
 
+@dataclass
+class MarginalizedParticleFilter(ParticleFilter):
+    """Marginalised (Rao-Blackwellised) particle filter on both raw ranges (Schön, Gustafsson &
+    Nordlund 2005): particles carry the relative position and a Kalman filter of the velocity
+    given its track, whose covariance is the same for every particle. Every option of the
+    particle filter; the regularisation kernel (``particle_bandwidth_scale``) acts on each
+    particle's position and velocity mean. Late ranges (``sonar.ping_offsets``,
+    ``sonar.latency`` with ``error_model: modelled``) are not supported."""
+
+
 #: The estimator slot. The first member is the default of an untagged section.
-EstimatorConfig = PaperKf | Ekf | Iekf | Ukf | ParticleFilter
+EstimatorConfig = PaperKf | Ekf | Iekf | Ukf | ParticleFilter | MarginalizedParticleFilter
