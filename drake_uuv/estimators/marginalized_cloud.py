@@ -154,7 +154,27 @@ class MarginalizedCloud(ParticleCloud):
 class MarginalizedRangeFilter(RangeFilter):
     """The raw-range filter (:class:`~drake_uuv.estimators.range_filter.RangeFilter`: linear
     start, hand-over, phases, ports) whose particle phase is the marginalised particle filter
-    (:class:`MarginalizedCloud`). Refuses late ranges (see the module notes)."""
+    (:class:`MarginalizedCloud`). Refuses late ranges (see the module notes). Ports, state
+    and phases are the raw-range filter's; the cloud adds ``Σ`` (B·9) to its state.
+
+    .. pydrake_system::
+
+        name: MarginalizedRangeFilter
+        input_ports:
+        - range_samples
+        - sonar_status
+        - R_WB_nav
+        - u1_W
+        - particle_seed
+        output_ports:
+        - x_TU_hat
+        - P_TU
+        - x_TU_prior
+        - P_TU_prior
+        - measurement_status
+        - nis
+        - estimator_phase
+    """
 
     cloud_type = MarginalizedCloud
 
