@@ -332,7 +332,14 @@ class MarginalizedParticleFilter(ParticleFilter):
     given its track, whose covariance is the same for every particle. Every option of the
     particle filter; the regularisation kernel (``particle_bandwidth_scale``) acts on each
     particle's position and velocity mean. Late ranges (``sonar.ping_offsets``,
-    ``sonar.latency`` with ``error_model: modelled``) are not supported."""
+    ``sonar.latency`` with ``error_model: modelled``) are not supported.
+
+    Measured (100 runs, batches of 100, position RMSE; the 5000-particle ParticleFilter's in
+    brackets): paper 0.2441 at 1000 particles, 0.2406 at 2000 (0.2370; the ParticleFilter at
+    1000: 0.2414); noisy_sonar 1.0248 at 1000, 1.0071 at 2000 (0.9970); far_standoff 1.1570
+    at 1000, 1.1203 at 2000, 1.1104 at 3000 (1.0905). It costs what the particle filter costs
+    per particle and is no more accurate at the same count here: the ranges constrain the
+    position, which both filters sample alike; marginalising the velocity removes little."""
 
 
 #: The estimator slot. The first member is the default of an untagged section.
