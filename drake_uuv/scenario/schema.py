@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from drake_uuv.scenario.attitude import AttitudeConfig, TrajectoryAttitude
-from drake_uuv.scenario.estimators import EstimatorConfig, PaperKf
+from drake_uuv.scenario.estimators import EstimatorConfig, MarginalizedParticleFilter, PaperKf
 from drake_uuv.scenario.navigation import NavigationConfig, PerfectNavigation
 from drake_uuv.scenario.plants import KinematicUuv, PlantConfig
 from drake_uuv.scenario.tracking import PaperTracking, TrackingConfig
@@ -180,6 +180,19 @@ class Scenario:
             fail("sonar.ping_offsets", f"must be < time_step = {t:g} each", self.sonar.ping_offsets)
         if self.sonar.latency > 10.0 * t:
             fail("sonar.latency", f"must be ≤ 10 time steps = {10.0 * t:g} s", self.sonar.latency)
+        late = max(self.sonar.ping_offsets) > 0.0 or self.sonar.latency > 0.0
+        if (
+            late
+            and isinstance(self.estimator, MarginalizedParticleFilter)
+            and self.estimator.error_model == "modelled"
+        ):
+            # Its cloud takes each tick's ranges at the tick only (no window of late ranges).
+            fail(
+                "sonar.ping_offsets",
+                "must be zero, with sonar.latency, for the marginalised particle filter with "
+                "error_model: modelled (use ParticleFilter, or estimator.error_model=ideal)",
+                self.sonar.ping_offsets,
+            )
 
 
 def describe(scenario: "Scenario") -> str:

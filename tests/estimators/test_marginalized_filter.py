@@ -175,3 +175,15 @@ def test_late_ranges_are_refused_in_one_line(B: int) -> None:
         MarginalizedParticleFilter(error_model="ideal", particle_count=COUNT),
         setting=timed, batch_size=B,
     )  # fmt: skip
+
+
+def test_late_ranges_are_refused_when_the_scenario_is_loaded() -> None:
+    """Before any system is built: one line naming the field (the command line prints it)."""
+    from drake_uuv.scenario import ScenarioError, load_scenario
+
+    with pytest.raises(
+        ScenarioError,
+        match=r"^sonar.ping_offsets: must be zero, with sonar.latency, for the marginalised "
+        r"particle filter with error_model: modelled .*got \[0.0, 0.25\]$",
+    ):
+        load_scenario("realistic", ["estimator=MarginalizedParticleFilter"])
