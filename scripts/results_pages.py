@@ -28,6 +28,7 @@ SLUGS = {
     "Estimation at the limit: noise and standoff": "regimes",
     "Attitude that seeks observability": "attitude",
     "Does it survive real navigation and sonar timing?": "navigation",
+    "Does any run get lost?": "robustness",
     "Comparison tables": "comparison-tables",
 }
 
