@@ -25,8 +25,10 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from drake_uuv.diagnostics import batch_warnings
+from drake_uuv.estimators.particle_cloud import bytes_per_run as cloud_bytes_per_run
 from drake_uuv.metrics import errors, metric_signals, run_information
 from drake_uuv.scenario import Scenario, scenario_as_dict
+from drake_uuv.scenario.estimators import RawRangeOptions
 from drake_uuv.signals import SIGNAL_BY_NAME
 from drake_uuv.simulation import ClosedLoopSimulation
 
@@ -208,10 +210,13 @@ def _summary(
 
 
 def _state_bytes_per_run(scenario: Scenario) -> int:
-    """What a run's systems hold beyond the log (a particle cloud), as the estimator's
-    dataclass states it (``bytes_per_run``), else nothing worth counting."""
-    estimate = getattr(scenario.estimator, "bytes_per_run", None)
-    return int(estimate()) if callable(estimate) else 0
+    """What a run's systems hold beyond the log: a particle cloud's state and weights
+    (:func:`~drake_uuv.estimators.particle_cloud.bytes_per_run`) for an estimator that may
+    carry particles (the particle filter, or the bridge of the Gaussian raw-range filters);
+    nothing worth counting otherwise."""
+    if not isinstance(scenario.estimator, RawRangeOptions):
+        return 0
+    return cloud_bytes_per_run(scenario.estimator.particle_count)
 
 
 def canonical_metric_names(lists: Sequence[list[str]]) -> list[str]:

@@ -130,3 +130,17 @@ def test_canonical_metric_names_are_a_completed_runs_whatever_the_order():
     assert canonical_metric_names([completed, ["failed"]]) == completed
     assert canonical_metric_names([]) == ["failed"]
     assert canonical_metric_names([["failed"], ["failed"]]) == ["failed"]
+
+
+def test_a_batch_holds_its_log_and_its_particles_within_the_budget():
+    """The batch size from the memory a run needs: its metrics' log over every step, and a
+    particle cloud's state where the estimator may carry one."""
+    from drake_uuv.estimators.particle_cloud import bytes_per_run
+    from drake_uuv.studies.runner import BATCH_LOG_BYTES, MAX_BATCH, max_batch_size
+
+    kf = load_scenario("paper")
+    pf = load_scenario("paper", ["estimator=ParticleFilter", "estimator.particle_count=20000"])
+    assert max_batch_size(kf) <= MAX_BATCH
+    assert max_batch_size(pf) < max_batch_size(kf)
+    assert max_batch_size(pf) * bytes_per_run(20000) <= BATCH_LOG_BYTES
+    assert (max_batch_size(pf) + 1) * bytes_per_run(20000) > 0.5 * BATCH_LOG_BYTES
