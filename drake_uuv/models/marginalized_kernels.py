@@ -42,13 +42,13 @@ from drake_uuv.models.particle_advance import (
     _draw_gaussian,
     _draw_gaussian_call,
     _prepare_resampling,
+    starting_weights,
 )
 from drake_uuv.models.particle_kernels import (
     CONTRACT,
     moments_into,
     normalise_into,
     psd_factor,
-    weigh_into,
 )
 from drake_uuv.models.particle_random import (
     ACCELERATION_SLOT,
@@ -171,26 +171,16 @@ def marginalized_advance(
         for k in range(3):
             c[k] = 0.5 * time_step * time_step * acceleration[b, k]
             c[k + 3] = time_step * acceleration[b, k]
-        cov, known = P[b], False  # work space, unless the posterior's moments are known
         for i in range(3):
             for j in range(3):
                 Sig[i, j] = Sigma[b, i, j]
         if drawn[b]:
             _draw_marginal(key, draw_x[b], draw_P[b], offset[b], L, drawn_cloud, lw, weights, Sig)
-            if weigh_draw[b]:
-                weigh_into(
-                    drawn_cloud, offset[b], lw, weights, z[b], used[b], q_s[b], R[b], ranges, lw,
-                    weights,
-                )  # fmt: skip
-        elif reweigh[b]:  # the posterior's weights and moments (stored frame: less offset)
-            lw[:] = posterior_log_weights[b]
-            weights[:] = posterior_weights[b]
-            for k in range(6):
-                mean[k] = posterior_x[b, k] - offset[b, k]
-            cov, known = posterior_P[b], True
-        else:
-            lw[:] = log_weights[b]
-            normalise_into(lw, weights)
+        known = starting_weights(
+            b, drawn, weigh_draw, reweigh, drawn_cloud, offset, z, used, q_s, R, ranges,
+            log_weights, posterior_log_weights, posterior_weights, posterior_x, lw, weights, mean,
+        )  # fmt: skip
+        cov = posterior_P[b] if known else P[b]  # P[b] is work space without the moments
         marginal_gain(Sig, time_step, Q[b], L_S, K, out_Sigma[b])
         _move_run(
             particles[b], drawn_cloud, drawn[b], lw, weights, known, mean, cov, key, chosen, L, c,

@@ -85,28 +85,62 @@ def cloud_advance(
         for k in range(3):
             c[k] = half * acceleration[b, k]
             c[k + 3] = time_step * acceleration[b, k]
-        cov, known = P[b], False  # work space, unless the posterior's moments are known
         if drawn[b]:
             _draw_cloud(key, draw_x[b], draw_P[b], offset[b], L, drawn_cloud, lw, weights)
-            if weigh_draw[b]:
-                weigh_into(
-                    drawn_cloud, offset[b], lw, weights, z[b], used[b], q_s[b], R[b], ranges, lw,
-                    weights,
-                )  # fmt: skip
-        elif reweigh[b]:  # the posterior's weights and moments (stored frame: less offset)
-            lw[:] = posterior_log_weights[b]
-            weights[:] = posterior_weights[b]
-            for k in range(6):
-                mean[k] = posterior_x[b, k] - offset[b, k]
-            cov, known = posterior_P[b], True
-        else:
-            lw[:] = log_weights[b]
-            normalise_into(lw, weights)
+        known = starting_weights(
+            b, drawn, weigh_draw, reweigh, drawn_cloud, offset, z, used, q_s, R, ranges,
+            log_weights, posterior_log_weights, posterior_weights, posterior_x, lw, weights, mean,
+        )  # fmt: skip
+        cov = posterior_P[b] if known else P[b]  # P[b] is work space without the moments
         _advance_run(
             particles[b], drawn_cloud, drawn[b], lw, weights, known, mean, cov, key, chosen, L, c,
             time_step, W_factor, jitter[b], resample_threshold, bandwidth, out[b],
             out_log_weights[b], x[b], P[b],
         )  # fmt: skip
+
+
+@njit(fastmath=CONTRACT)
+def starting_weights(
+    b: int,
+    drawn: np.ndarray,
+    weigh_draw: np.ndarray,
+    reweigh: np.ndarray,
+    drawn_cloud: np.ndarray,
+    offset: np.ndarray,
+    z: np.ndarray,
+    used: np.ndarray,
+    q_s: np.ndarray,
+    R: np.ndarray,
+    ranges: np.ndarray,
+    log_weights: np.ndarray,
+    posterior_log_weights: np.ndarray,
+    posterior_weights: np.ndarray,
+    posterior_x: np.ndarray,
+    lw: np.ndarray,
+    weights: np.ndarray,
+    mean: np.ndarray,
+) -> bool:  # pragma: no cover - compiled
+    """Run b's log weights and weights before its move, into ``lw`` and ``weights``: a drawn
+    cloud's (already drawn into ``drawn_cloud``, ``lw``, ``weights``), weighed by the ranges
+    where ``weigh_draw``; else the posterior's where ``reweigh``, with its mean in the stored
+    frame in ``mean`` (returns True: the posterior's moments are known); else the stored ones.
+    Shared by the particle and the marginalised clouds' periodic updates."""
+    if drawn[b]:
+        if weigh_draw[b]:
+            weigh_into(
+                drawn_cloud, offset[b], lw, weights, z[b], used[b], q_s[b], R[b], ranges, lw,
+                weights,
+            )  # fmt: skip
+        return False
+    if reweigh[b]:  # the posterior's weights and moments (stored frame: less offset)
+        lw[:] = posterior_log_weights[b]
+        weights[:] = posterior_weights[b]
+        for k in range(6):
+            mean[k] = posterior_x[b, k] - offset[b, k]
+        return True
+    lw[:] = log_weights[b]
+    normalise_into(lw, weights)
+    return False
 
 
 @njit
