@@ -64,7 +64,13 @@ CHARACTER_WIDTH_EM = 0.6
 def save_figure(figure: Figure, stem: Path, formats: Iterable[str] = FORMATS) -> list[Path]:
     """Writes ``stem.png`` and ``stem.svg`` (atomically) and closes the figure."""
     stem = Path(stem)
-    paths = [save_figure_atomic(figure, stem.with_suffix(f".{fmt}"), dpi=120) for fmt in formats]
+    paths = []
+    for fmt in formats:
+        paths.append(save_figure_atomic(figure, stem.with_suffix(f".{fmt}"), dpi=120))
+        # The layout is in figure fractions and points, the same for every format: laying
+        # out once (a third of a figure's drawing time with constrained layout) suffices.
+        if figure.get_layout_engine() is not None:
+            figure.set_layout_engine("none")
     plt.close(figure)
     return paths
 
