@@ -48,7 +48,7 @@ def time_planner(planner: InformationSeekingPlanner, data: list, history: np.nda
 def time_system(scenario: Scenario, data: list) -> float:
     system = make_attitude_generator(scenario)
     context = system.CreateDefaultContext()
-    ports = [system.GetInputPort(name) for name in ("R_WB", "x_TU_hat", "P_TU")]
+    ports = [system.GetInputPort(name) for name in ("R_WB_nav", "x_TU_hat", "P_TU")]
     rate, plan = system.GetOutputPort("u2_W"), system.GetOutputPort("R_WB_plan")
     start = time.perf_counter()
     for x, P, R in data:
