@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from drake_uuv.scenario import load_scenario
 from drake_uuv.studies import Group, Variant
 
+from .shares import with_shares
 from .vehicle import VEHICLE_ANGULAR_RATE, VEHICLE_LOOP, followable_target
 
 # Rotation budgets [rad per step] of the attitude group: a quarter and a half of Algorithm 2's
@@ -78,16 +79,18 @@ def attitude_vehicle_variants() -> list[Variant]:
         "alg2": ("attitude=!TrajectoryAttitude", f"attitude.max_angular_rate={budget / t!r}"),
         "info": (f"attitude=!InformationSeeking {{max_angle_per_step: {budget!r}}}",),
     }
-    return [
-        Variant(
-            f"{plant}-{kind}-{budget:g}",
-            ATTITUDE_VEHICLE_TITLE,
-            ("estimator=!PaperKf", *VEHICLE_LOOP, target, *chosen, *extra),
-            f"{note}, W × {scale:g}",
-        )
-        for plant, extra in (("kinematic", ()), ("auv", ("plant=!HoveringAuv",)))
-        for kind, chosen in attitudes.items()
-    ]
+    return with_shares(
+        [
+            Variant(
+                f"{plant}-{kind}-{budget:g}",
+                ATTITUDE_VEHICLE_TITLE,
+                ("estimator=!PaperKf", *VEHICLE_LOOP, target, *chosen, *extra),
+                f"{note}, W × {scale:g}",
+            )
+            for plant, extra in (("kinematic", ()), ("auv", ("plant=!HoveringAuv",)))
+            for kind, chosen in attitudes.items()
+        ]
+    )
 
 
 ATTITUDE_GROUP = Group(

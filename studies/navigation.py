@@ -11,13 +11,15 @@ Two parts:
 * **the realistic scenario** (``drake_uuv/scenarios/realistic.yaml``: the hovering UUV's
   flyable loop on a target it can follow, with every error together) on the hovering UUV and
   on the paper's kinematic plant, × the four estimators × the two error models. These rows
-  carry the acceptance: 40 runs each on the results page.
+  carry the acceptance; each runs its share of ``--runs`` (:mod:`.shares`).
 
 The error figures are commercial-grade ones, cited in ``realistic.yaml`` and
 ``drake_uuv/scenario/navigation.py``.
 """
 
 from drake_uuv.studies import Group, Variant
+
+from .shares import with_shares
 
 NAVIGATION_TITLE = "navigation: each error source alone and all together × estimator × law"
 REALISTIC_TITLE = "realistic: the hovering UUV's flyable loop with every error, two plants"
@@ -130,7 +132,7 @@ def realistic_variants() -> list[Variant]:
                         scenario="realistic",
                     )
                 )
-    return rows
+    return with_shares(rows)
 
 
 def navigation_variants() -> list[Variant]:

@@ -7,6 +7,8 @@ the particle filter with four times its default count as the reference.
 
 from drake_uuv.studies import Group, Variant
 
+from .shares import with_shares
+
 REGIMES_TITLE = "regimes: range noise and standoff × estimator"
 # The regimes of the estimators' study: name → (note, --set overrides). σ at the paper's
 # standoff (q* = [−2, −2, 0] in the body frame, |q*| ≈ 2.8 m); standoff at σ = 0.1 m with q*
@@ -42,11 +44,13 @@ REGIME_ESTIMATORS = {
 def regime_variants() -> list[Variant]:
     """Every regime of :data:`REGIMES` × :data:`REGIME_ESTIMATORS`, named
     ``<regime>-<estimator>`` (``sigma0.5-pf``, ``world28-pf20000``)."""
-    return [
-        Variant(f"{regime}-{estimator}", REGIMES_TITLE, (*overrides, override), note)
-        for regime, (note, overrides) in REGIMES.items()
-        for estimator, override in REGIME_ESTIMATORS.items()
-    ]
+    return with_shares(
+        [
+            Variant(f"{regime}-{estimator}", REGIMES_TITLE, (*overrides, override), note)
+            for regime, (note, overrides) in REGIMES.items()
+            for estimator, override in REGIME_ESTIMATORS.items()
+        ]
+    )
 
 
 REGIMES_GROUP = Group(

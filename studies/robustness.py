@@ -3,8 +3,8 @@
 Every shipped scenario with its own estimator, and the EKF, the UKF and the particle filter in
 the paper's regime, at a far standoff, with noisy sonars and in the realistic scenario on both
 plants. The kinematic rows run ``--runs`` seeds (1000 on the results pages); the rows on the
-hovering UUV a fifth of them (:data:`VEHICLE_SHARE`), since a vehicle run costs several times
-a kinematic one.
+hovering UUV a fifth of them and those with a 20 000-particle filter a tenth
+(:mod:`.shares`), since their runs cost several and a hundred times a kinematic one.
 
 A run is *lost* when the estimator-health monitor stopped it or its final position error
 exceeds :data:`LOST_ERROR` (the paper's divergence threshold); the section lists the seeds.
@@ -12,26 +12,20 @@ exceeds :data:`LOST_ERROR` (the paper's divergence threshold); the section lists
 
 from drake_uuv.studies import Group, Variant
 
+from .shares import with_shares
+
 ROBUSTNESS_TITLE = "robustness: lost runs, worst error and consistency over many seeds"
-#: The share of --runs a row on the hovering UUV runs (200 of 1000).
-VEHICLE_SHARE = 0.2
 #: [m] A run whose final position error exceeds this is lost (the paper's divergence threshold).
 LOST_ERROR = 10.0
-#: Each shipped scenario, as it ships (its own estimator), and whether it flies the vehicle.
-SHIPPED = {
-    "paper": False,
-    "noisy_sonar": False,
-    "far_standoff": False,
-    "hovering_auv": True,
-    "realistic": True,
-}
-#: The regimes the raw-range filters are compared in: (scenario, overrides, on the vehicle).
-REGIMES: dict[str, tuple[str, tuple[str, ...], bool]] = {
-    "paper": ("paper", (), False),
-    "far": ("far_standoff", (), False),
-    "noisy": ("noisy_sonar", (), False),
-    "realistic-auv": ("realistic", (), True),
-    "realistic-kinematic": ("realistic", ("plant=KinematicUuv",), False),
+#: Each shipped scenario, as it ships (its own estimator).
+SHIPPED = ("paper", "noisy_sonar", "far_standoff", "hovering_auv", "realistic")
+#: The regimes the raw-range filters are compared in: (scenario, overrides).
+REGIMES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "paper": ("paper", ()),
+    "far": ("far_standoff", ()),
+    "noisy": ("noisy_sonar", ()),
+    "realistic-auv": ("realistic", ()),
+    "realistic-kinematic": ("realistic", ("plant=KinematicUuv",)),
 }
 #: The filters compared in each regime. The realistic scenario's prior (σ = 3 m, 1 m/s) is
 #: every filter's there, as its particle filter's.
@@ -48,11 +42,10 @@ def robustness_variants() -> list[Variant]:
             (),
             f"{name}.yaml as shipped",
             scenario=name,
-            run_fraction=VEHICLE_SHARE if vehicle else 1.0,
         )
-        for name, vehicle in SHIPPED.items()
+        for name in SHIPPED
     ]
-    for regime, (scenario, overrides, vehicle) in REGIMES.items():
+    for regime, (scenario, overrides) in REGIMES.items():
         for estimator, chosen in ESTIMATORS.items():
             own = scenario == "realistic" and estimator == "pf"  # the scenario's own filter
             rows.append(
@@ -62,10 +55,9 @@ def robustness_variants() -> list[Variant]:
                     overrides if own else (*overrides, chosen),
                     f"{regime}, {estimator}",
                     scenario=None if scenario == "paper" else scenario,
-                    run_fraction=VEHICLE_SHARE if vehicle else 1.0,
                 )
             )
-    return rows
+    return with_shares(rows)
 
 
 ROBUSTNESS_GROUP = Group(

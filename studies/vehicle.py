@@ -14,6 +14,8 @@ from drake_uuv.models.vehicle_envelope import (
 from drake_uuv.scenario import Scenario, load_scenario
 from drake_uuv.studies import Group, Variant
 
+from .shares import with_shares
+
 # [rad/s] The hovering UUV's angular rate that never saturates its thrusters with the loop
 # below: drake_uuv.models.vehicle_limits.utilisation_budget of 0.3 rad/s (and steps of it),
 # 0.6 m/s², any tilt and speeds up to 0.38 m/s uses at most 0.84 of the worst thruster's
@@ -164,7 +166,7 @@ def vehicle_variants() -> list[Variant]:
             f"feasible, W × {scale:g}, nav.",
         ),
     ]
-    return rows
+    return with_shares(rows)
 
 
 VEHICLE_GROUP = Group(

@@ -3,9 +3,9 @@ against Algorithm 2 at equal motion, with the paper's KF and the raw-range EKF, 
 hovering UUV.
 
 Runs the comparison groups ``attitude`` (``runs`` per variant) and ``attitude_vehicle``
-(``min(runs, 30)``: a vehicle run costs ~10 s) through :func:`drake_uuv.studies.compare_groups`
-into ``work/attitude`` and ``work/attitude_vehicle`` (resume-able), pairs the variants seed
-by seed with ``studies/paired.py``, draws
+(``runs`` per kinematic row, a fifth of them per vehicle row) through
+:func:`drake_uuv.studies.compare_groups` into ``work/attitude`` and ``work/attitude_vehicle``
+(resume-able), pairs the variants seed by seed with ``studies/paired.py``, draws
 ``docs/figures/attitude_rmse_rotation.png`` and returns the Markdown. Every number in it
 comes from these runs.
 """
@@ -28,12 +28,12 @@ from drake_uuv.studies import compare_groups  # noqa: E402
 
 from ..attitude import ATTITUDE_BUDGETS, ATTITUDE_GROUP, ATTITUDE_VEHICLE_GROUP  # noqa: E402
 from ..paired import compare_folders, failed_runs, read_runs  # noqa: E402
+from ..shares import VEHICLE_SHARE  # noqa: E402
 from ..vehicle import VEHICLE_ANGULAR_RATE, VEHICLE_LOOP, VEHICLE_SPEED_BUDGET  # noqa: E402
 
 # The acceptance: at Algorithm 2's mean rotation per step the planner's position RMSE is at
 # least this much lower (and the paired difference's interval excludes zero).
 REQUIRED_REDUCTION = 0.2
-VEHICLE_RUNS = 30
 FIGURE = "attitude_rmse_rotation"
 ESTIMATORS = {"kf": "the paper's KF (`!PaperKf`)", "ekf": "the raw-range EKF (`!Ekf`)"}
 
@@ -184,10 +184,8 @@ def _figure(rows: dict[str, _Row], docs: Path) -> Path:
 def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str:
     """Runs (or resumes) both groups, draws the figure and returns the section's Markdown."""
     main = compare_groups([ATTITUDE_GROUP], work / "attitude", runs, **execution)
-    vehicle_runs = min(runs, VEHICLE_RUNS)
-    vehicle = compare_groups(
-        [ATTITUDE_VEHICLE_GROUP], work / "attitude_vehicle", vehicle_runs, **execution
-    )
+    vehicle = compare_groups([ATTITUDE_VEHICLE_GROUP], work / "attitude_vehicle", runs, **execution)
+    vehicle_runs = round(VEHICLE_SHARE * runs)
     rows = {variant.name: _Row(variant, result) for variant, result in main}
     vrows = {variant.name: _Row(variant, result) for variant, result in vehicle}
     (docs / "figures").mkdir(parents=True, exist_ok=True)
@@ -320,7 +318,7 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
     )
     loop = " ".join(f"`--set {shlex.quote(o)}`" for o in VEHICLE_LOOP)
     main_command = f"drake-uuv compare --group attitude --runs {runs}"
-    vehicle_command = f"drake-uuv compare --group attitude_vehicle --runs {vehicle_runs}"
+    vehicle_command = f"drake-uuv compare --group attitude_vehicle --runs {runs}"
 
     return f"""
 ## Attitude that seeks observability
@@ -379,12 +377,12 @@ The same comparison on the 8-thruster vehicle (`--set plant=HoveringAuv`) at one
 from the rate the vehicle follows without saturating: {VEHICLE_ANGULAR_RATE:g} rad/s, i.e.
 {vbudget:g} rad per step (Algorithm 2 with `attitude.max_angular_rate={VEHICLE_ANGULAR_RATE:g}`
 against the planner with `max_angle_per_step: {vbudget:g}`), paper's KF, {vehicle_runs} runs
-each, and for reference the same loop on the kinematic plant (`{vehicle_command}`). The loop is
-one the vehicle can fly: {loop}. The LQR law's limit of {tracking.max_acceleration:g} m/s²
-and Bryson weights for {speed_budget:.2f} m/s of speed error (half the vehicle's 0.76 m/s top
-speed) and {tracking.max_acceleration:g} m/s² keep the commands within its thrust: with
-{VEHICLE_ANGULAR_RATE:g} rad/s, rate steps of as much, any tilt and speeds up to
-{speed_budget:.2f} m/s, the worst-direction thrust budget
+each, and for reference the same loop on the kinematic plant ({runs} runs;
+`{vehicle_command}`). The loop is one the vehicle can fly: {loop}. The LQR law's limit of
+{tracking.max_acceleration:g} m/s² and Bryson weights for {speed_budget:.2f} m/s of speed error
+(half the vehicle's 0.76 m/s top speed) and {tracking.max_acceleration:g} m/s² keep the
+commands within its thrust: with {VEHICLE_ANGULAR_RATE:g} rad/s, rate steps of as much, any
+tilt and speeds up to {speed_budget:.2f} m/s, the worst-direction thrust budget
 (`drake_uuv.models.vehicle_limits.utilisation_budget`) is {thrust:.0%} used. q* is fixed in
 the world because a q* in the body (or the heading) turns with the attitude and asks
 |q*| ω = {sweep * VEHICLE_ANGULAR_RATE:.2f} m/s of speed at {VEHICLE_ANGULAR_RATE:g} rad/s,

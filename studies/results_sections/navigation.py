@@ -3,8 +3,8 @@
 
 Runs the group's two parts (``studies/navigation.py``) through
 :func:`drake_uuv.studies.compare` (resume-able): every error source alone and all together on
-the paper's loop (:data:`SOURCE_RUNS` runs per row, under ``work/navigation/sources``), and the
-realistic scenario on both plants (:data:`REALISTIC_RUNS` runs per row, under
+the paper's loop (``runs`` per row, under ``work/navigation/sources``), and the realistic
+scenario on both plants (each row its share of ``runs``, ``studies/shares.py``, under
 ``work/navigation/realistic``); writes ``docs/figures/navigation_nees.png`` and returns the
 Markdown, every number taken from those runs.
 """
@@ -29,9 +29,6 @@ from ..navigation import (
 )
 from .regimes import _g, numbers
 
-SOURCE_RUNS = 20
-# The acceptance's sample: 40 seeds of the realistic set on each plant.
-REALISTIC_RUNS = 40
 BOUND_LIMIT = 1.25  # the best modelled estimator's position RMSE over the extended bound
 FIGURE = "navigation_nees"
 ESTIMATOR_LABELS = {"kf": "paper's KF", "ekf": "EKF", "ukf": "UKF", "pf": "PF"}
@@ -152,11 +149,11 @@ def nees_figure(n: dict[str, dict[str, Any]], path: Path) -> None:
 def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str:
     """Runs the ``navigation`` group and returns the section's Markdown (module notes)."""
     (docs / "figures").mkdir(parents=True, exist_ok=True)
-    source_runs, realistic_runs = min(runs, SOURCE_RUNS), min(runs, REALISTIC_RUNS)
+    source_runs = runs
     folder = work / "navigation"
     compared = [
         *compare(source_variants(), folder / "sources", source_runs, **execution),
-        *compare(realistic_variants(), folder / "realistic", realistic_runs, **execution),
+        *compare(realistic_variants(), folder / "realistic", runs, **execution),
     ]
     n = {variant.name: numbers(result) for variant, result in compared}
     nees_figure(n, docs / "figures" / f"{FIGURE}.png")
@@ -175,7 +172,7 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
 
     swing = 2 * realistic.time_step / realistic.attitude.h_frequency  # h(k)'s period [s]
     lost = ", ".join(
-        f"{v.name} ({len(n[v.name]['diverged_seeds'])}/{realistic_runs})"
+        f"{v.name} ({len(n[v.name]['diverged_seeds'])}/{n[v.name]['runs']})"
         for v in realistic_variants()
         if n[v.name]["diverged_seeds"]
     )
@@ -240,9 +237,11 @@ fixed in the world, a target at 0.166 × the paper's W) with commercial-grade fi
 after sonar 1, {realistic.sonar.latency:g} s of latency and a sound speed
 {100 * realistic.sonar.sound_speed_error:g} % off. Its particle filter has
 {realistic.estimator.particle_count} particles; every row starts from its prior (σ = 3 m per
-position axis). {realistic_runs} runs per row (seeds {first}–{first + realistic_runs - 1}),
-on the hovering UUV (`auv`) and on the paper's kinematic plant (`kinematic`), by
-`drake-uuv compare --group navigation --runs {realistic_runs}` (the `realistic-*` rows).
+position axis). The rows run on the hovering UUV (`auv`) and on the paper's kinematic plant
+(`kinematic`), by `drake-uuv compare --group navigation --runs {runs}` (the `realistic-*`
+rows), each the first seeds from {first}: {runs} on the kinematic plant, a fifth of them on
+the hovering UUV and a tenth with the scenario's particle filter
+({realistic.estimator.particle_count} particles) (the *diverged* column counts each row's runs).
 
 {chr(10).join(realistic_table)}
 

@@ -51,9 +51,6 @@ TIMING_SEEDS = (0, 1)
 PEER_LOGS = {"paper": 5, "sigma0.5": 4}
 BOOTSTRAP_RESAMPLES = 2000
 
-# Runs per row at most: the 20000-particle reference costs about 14 s a run.
-REGIME_RUNS = 40
-
 
 def _g(value: float | None, fmt: str = ".3g") -> str:
     return "—" if value is None or not math.isfinite(value) else format(value, fmt)
@@ -262,7 +259,6 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
     """Runs the ``regimes`` group and returns the section's Markdown (see the module notes)."""
     (docs / "figures").mkdir(parents=True, exist_ok=True)
     folder = work / "regimes"
-    runs = min(runs, REGIME_RUNS)
     variants = regime_variants()
     compared = compare_groups([REGIMES_GROUP], folder, runs, **execution)
     n = {variant.name: numbers(result) for variant, result in compared}
@@ -295,10 +291,10 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
         ratio, low, high = n[f"{regime}-{best}"]["position_ratio"]
         reference = n[f"{regime}-{REFERENCE}"]["position_ratio"][0]
         if reference > BOUND_LIMIT:
-            over = math.sqrt(
-                np.nanmean(n[f"{regime}-{best}"]["position_rmse_runs"] ** 2)
-                / np.nanmean(n[f"{regime}-{REFERENCE}"]["position_rmse_runs"] ** 2)
-            )
+            # On the reference's seeds, the first of the row's (a tenth of them).
+            reference_rmse = n[f"{regime}-{REFERENCE}"]["position_rmse_runs"]
+            best_rmse = n[f"{regime}-{best}"]["position_rmse_runs"][: len(reference_rmse)]
+            over = math.sqrt(np.nanmean(best_rmse**2) / np.nanmean(reference_rmse**2))
             passed = over <= REFERENCE_LIMIT
             criterion = f"{_g(over)}× the reference (≤ {REFERENCE_LIMIT:g})"
         else:
@@ -373,8 +369,9 @@ body it spins with Algorithm 2 and the vehicle cannot follow it far out). Each r
 paper's KF on Y, the three raw-range filters (EKF, UKF, particle filter with its default
 {pf.particle_count} particles) and a particle filter with 20000 particles, the large-count
 reference: the empirical optimum, which shows where the bound is not attainable. {runs}
-seeded runs per row (seeds {first}–{last}, the same in every row), steady state k ≥ {start},
-by `drake-uuv compare --group regimes --runs {runs}`.
+seeded runs per row (seeds {first}–{last}), the 20000-particle reference the first tenth of
+them (its runs cost a hundred times), steady state k ≥ {start}, by `drake-uuv compare --group
+regimes --runs {runs}`.
 
 ![RMSE over the per-run PCRLB](figures/regimes_ratio.png)
 

@@ -17,7 +17,8 @@ from drake_uuv.models.statistics import nees_band
 from drake_uuv.studies import compare_groups
 from drake_uuv.studies.study import StudyResult
 
-from ..robustness import LOST_ERROR, ROBUSTNESS_GROUP, VEHICLE_SHARE
+from ..robustness import LOST_ERROR, ROBUSTNESS_GROUP
+from ..shares import LARGE_CLOUD, LARGE_CLOUD_SHARE, VEHICLE_SHARE
 
 # Seeds listed in a row at most; more are counted.
 LISTED_SEEDS = 12
@@ -74,12 +75,15 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
         kept += none_lost
         consistent += in_band
     vehicle_runs = round(VEHICLE_SHARE * runs)
+    cloud_runs = round(LARGE_CLOUD_SHARE * runs)
+    cloud = f"{LARGE_CLOUD:,}".replace(",", " ")
     return f"""
 ## Does any run get lost?
 
 A lost run is a vehicle lost at sea: the loops are run over many seeds, batched (one diagram
-steps a whole batch of runs), {runs} per row on the kinematic plant and {vehicle_runs}
-on the hovering UUV. Every shipped scenario runs as it ships (`robust-<scenario>`), and the EKF, the
+steps a whole batch of runs), {runs} per row on the kinematic plant, {vehicle_runs}
+on the hovering UUV and {cloud_runs} with a particle filter of {cloud} particles (the
+table's *runs*). Every shipped scenario runs as it ships (`robust-<scenario>`), and the EKF, the
 UKF and the particle filter run in the paper's regime, at the far standoff (14 m), with noisy
 sonars (σ = 1 m) and in the realistic scenario on both plants. A run is lost when the
 estimator-health monitor stopped it or its final position error exceeds {LOST_ERROR:g} m. The

@@ -252,6 +252,36 @@ def test_the_robustness_group_runs_every_shipped_scenario_and_a_fifth_on_the_veh
     assert {"paper", "noisy_sonar", "far_standoff", "hovering_auv", "realistic"} <= shipped
     assert rows["robust-hovering_auv"].runs(1000) == 200
     assert rows["robust-realistic-kinematic-ekf"].runs(1000) == 1000
+    assert rows["robust-realistic-auv-ekf"].runs(1000) == 200
+    # The realistic scenario's 20 000-particle filter: a tenth, on either plant.
+    assert rows["robust-realistic"].runs(1000) == 100
+    assert rows["robust-realistic-kinematic-pf"].runs(1000) == 100
     assert rows["robust-realistic-auv-pf"].overrides == ()  # the scenario's own filter
     for name in ("robust-paper-ekf", "robust-far-ukf", "robust-noisy-pf"):
         assert rows[name].runs(1000) == 1000
+
+
+@pytest.mark.parametrize(
+    ("scenario", "overrides", "share"),
+    [
+        ("paper", (), 1.0),
+        ("paper", ("estimator=ParticleFilter",), 1.0),  # 5000 particles
+        ("paper", ("estimator=!ParticleFilter {particle_count: 20000}",), 0.1),
+        ("paper", ("estimator=!MarginalizedParticleFilter {particle_count: 20000}",), 0.1),
+        ("hovering_auv", (), 0.2),
+        ("realistic", (), 0.1),  # the vehicle and 20 000 particles: the smaller share
+        ("realistic", ("plant=KinematicUuv", "estimator=Ekf"), 1.0),  # a bridge, not a filter
+        ("realistic", ("estimator=Ekf",), 0.2),
+    ],
+)
+def test_a_row_s_share_of_the_runs_follows_what_its_runs_cost(scenario, overrides, share):
+    shares = study_module("shares")
+    assert shares.run_share(load_scenario(scenario, list(overrides))) == share
+
+
+def test_every_group_s_rows_take_their_share_of_the_runs():
+    shares = study_module("shares")
+    for name in ("vehicle", "regimes", "attitude_vehicle", "navigation", "robustness"):
+        for row in GROUPS[name].variants():
+            scenario = load_scenario(row.scenario or "paper", list(row.overrides))
+            assert row.run_fraction == shares.run_share(scenario), (name, row.name)
