@@ -96,21 +96,24 @@ def bound_covariances(log: dict[str, np.ndarray], scenario: Scenario) -> dict[st
     _, gamma = range_difference_noise("derived", eta, squared + eta)
     # The KF's Riccati recursion in information form (C = [q_sᵀ, 0], Y needs both ranges),
     # equal to its Joseph form (pcrlb.kf_riccati_covariance) to rounding, run in one batch
-    # with the PCRLB: half the time of two recursions.
-    information = np.empty((2, *q_s.shape[:-1], 6, 6))
-    run_information(log, scenario, out=information[0])
+    # with the PCRLB: half the time of two recursions. With the errors on, the PCRLB is the
+    # extended bound's instead: the Riccati recursion alone.
+    errors_on = bound_errors_on(scenario)
+    information = np.empty((1 if errors_on else 2, *q_s.shape[:-1], 6, 6))
+    if not errors_on:
+        run_information(log, scenario, out=information[0])
     both = np.all(log["sonar_status"] == VALID, axis=-1) if "sonar_status" in log else True
     weight = np.broadcast_to(np.where(both, 1.0 / gamma, 0.0), q_s.shape[:-1])
     _baseline_information_kernel(
         np.ascontiguousarray(q_s, dtype=float).reshape(-1, 3),
         np.ascontiguousarray(weight).reshape(-1),
-        information[1].reshape(-1, 6, 6),
+        information[-1].reshape(-1, 6, 6),
     )
-    pcrlb, riccati = pcrlb_recursion(information, P0, W, scenario.time_step)
-    if not bound_errors_on(scenario):
-        return {"pcrlb": pcrlb, "kf_riccati": riccati}
+    bounds = pcrlb_recursion(information, P0, W, scenario.time_step)
+    if not errors_on:
+        return {"pcrlb": bounds[0], "kf_riccati": bounds[1]}
     bound, floor = extended_bound(log, scenario)
-    return {"pcrlb": bound + floor, "kf_riccati": riccati, "pcrlb_floor": floor}
+    return {"pcrlb": bound + floor, "kf_riccati": bounds[-1], "pcrlb_floor": floor}
 
 
 def bound_errors_on(scenario: Scenario) -> bool:
