@@ -97,7 +97,13 @@ def _per_step(value: np.ndarray, shape: tuple[int, ...], variances: bool = False
     value = np.asarray(value, dtype=float)
     if variances and value.ndim < 2:
         value = value[..., None, None] * np.eye(3)
-    return np.ascontiguousarray(np.broadcast_to(value, (*shape, 3, 3)))
+    return _owned(value, (*shape, 3, 3))
+
+
+def _owned(value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` broadcast to ``shape``, as a new C-contiguous writable array (one type for
+    the kernel whatever the caller passed: one compiled version)."""
+    return np.array(np.broadcast_to(value, shape), dtype=float, order="C")
 
 
 def pcrlb_timed(
@@ -140,9 +146,7 @@ def pcrlb_timed(
     bounds = np.empty((*shape, 6, 6))
     timed_bound_kernel(
         np.ascontiguousarray(rows).reshape(-1, steps, 2, 9),
-        np.ascontiguousarray(np.broadcast_to(noise, (*shape, 2, 2)), dtype=float).reshape(
-            -1, steps, 2, 2
-        ),
+        _owned(noise, (*shape, 2, 2)).reshape(-1, steps, 2, 2),
         np.ascontiguousarray(present).reshape(-1, steps, 2),
         np.ascontiguousarray(lags).reshape(-1, steps, 2),
         np.ascontiguousarray(windows).reshape(-1),
