@@ -12,7 +12,7 @@ a leading run axis in, a leading run axis out. The metrics' RMSEs of these bound
 import numpy as np
 from numba import njit
 
-from drake_uuv.batch_logs import run_log
+from drake_uuv.batch_logs import batch_log
 from drake_uuv.models.measurement import VALID, range_difference_noise
 from drake_uuv.models.navigation_noise import (
     commanded_acceleration_noise,
@@ -24,7 +24,7 @@ from drake_uuv.models.navigation_noise import (
 )
 from drake_uuv.models.pcrlb import measurement_information, pcrlb_recursion
 from drake_uuv.models.pcrlb_timed import pcrlb_timed
-from drake_uuv.models.ping_geometry import interpolate_attitude
+from drake_uuv.models.ping_geometry import interpolate_attitude_runs
 from drake_uuv.scenario import Scenario
 
 # A ping time short of a tick by less than this fraction of a step (rounding of k t + τ)
@@ -96,46 +96,24 @@ def bound_covariances(log: dict[str, np.ndarray], scenario: Scenario) -> dict[st
     _, gamma = range_difference_noise("derived", eta, squared + eta)
     # The KF's Riccati recursion in information form (C = [q_sᵀ, 0], Y needs both ranges),
     # equal to its Joseph form (pcrlb.kf_riccati_covariance) to rounding, run in one batch
-    # with the PCRLB: half the time of two recursions.
-    information = np.empty((2, *q_s.shape[:-1], 6, 6))
-    run_information(log, scenario, out=information[0])
+    # with the PCRLB: half the time of two recursions. With the errors on, the PCRLB is the
+    # extended bound's instead: the Riccati recursion alone.
+    errors_on = bound_errors_on(scenario)
+    information = np.empty((1 if errors_on else 2, *q_s.shape[:-1], 6, 6))
+    if not errors_on:
+        run_information(log, scenario, out=information[0])
     both = np.all(log["sonar_status"] == VALID, axis=-1) if "sonar_status" in log else True
     weight = np.broadcast_to(np.where(both, 1.0 / gamma, 0.0), q_s.shape[:-1])
     _baseline_information_kernel(
         np.ascontiguousarray(q_s, dtype=float).reshape(-1, 3),
         np.ascontiguousarray(weight).reshape(-1),
-        information[1].reshape(-1, 6, 6),
+        information[-1].reshape(-1, 6, 6),
     )
-    pcrlb, riccati = pcrlb_recursion(information, P0, W, scenario.time_step)
-    if not bound_errors_on(scenario):
-        return {"pcrlb": pcrlb, "kf_riccati": riccati}
-    if q.ndim == 2:
-        bound, floor = extended_bound(log, scenario)
-    else:  # the timed bound is a run's recursion: one run at a time
-        bound, floor = (
-            np.stack(parts)
-            for parts in zip(
-                *(_extended_bound_of_run(run_log(log, i), scenario) for i in range(len(q))),
-                strict=True,
-            )
-        )
-    return {"pcrlb": bound + floor, "kf_riccati": riccati, "pcrlb_floor": floor}
-
-
-def _extended_bound_of_run(
-    log: dict[str, np.ndarray], scenario: Scenario
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`extended_bound` of one run of a batch; NaN for a failed run (a non-finite true
-    state or baseline in its log) whose pings it cannot read, so that run does not stop the
-    batch's metrics (a sound run's error still raises)."""
-    try:
-        return extended_bound(log, scenario)
-    except (ValueError, np.linalg.LinAlgError):
-        state = ("p_WU", "v_WU", "p_WT", "v_WT", "R_WB", "b_W")
-        if all(np.isfinite(log[name]).all() for name in state):
-            raise
-        nan = np.full((len(log["p_WU"]), 6, 6), np.nan)
-        return nan, nan
+    bounds = pcrlb_recursion(information, P0, W, scenario.time_step)
+    if not errors_on:
+        return {"pcrlb": bounds[0], "kf_riccati": bounds[1]}
+    bound, floor = extended_bound(log, scenario)
+    return {"pcrlb": bound + floor, "kf_riccati": bounds[-1], "pcrlb_floor": floor}
 
 
 def bound_errors_on(scenario: Scenario) -> bool:
@@ -164,10 +142,26 @@ def ping_arrivals(
     arrival, and (``[k, i, :]``) its sonar's position relative to the target at the ping.
     An arrival at tick j counts when its ``sonar_status`` is VALID; its step is the tick its
     ``ping_time`` follows. A log without ``ping_time`` and ``p_TS_W`` (a sonar pinging at
-    the tick, without latency) gives ``τ = 0``, lag 0 and ``q ± ½ b_W``.
+    the tick, without latency) gives ``τ = 0``, lag 0 and ``q ± ½ b_W``. A batch log gives
+    each run's (a leading run axis); a run whose pings cannot be read raises.
     """
-    steps, t = len(log["p_WU"]), scenario.time_step
-    valid = log["sonar_status"] == VALID if "sonar_status" in log else np.ones((steps, 2), bool)
+    tau, lag, p_TS, errors = _read_pings(log, scenario)
+    for error in errors.reshape(-1):
+        if error is not None:
+            raise ValueError(error)
+    return tau, lag, p_TS
+
+
+def _read_pings(
+    log: dict[str, np.ndarray], scenario: Scenario
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`ping_arrivals` of a run's log or a batch log, and each run's error (an object
+    array of the leading axes: None, or the message of why its pings cannot be read; such a
+    run's pings are all absent). All runs at once: the arrivals' indices over the runs."""
+    lead, steps, t = log["p_WU"].shape[:-2], log["p_WU"].shape[-2], scenario.time_step
+    shape = (*lead, steps, 2)
+    valid = log["sonar_status"] == VALID if "sonar_status" in log else np.ones(shape, bool)
+    errors = np.full(lead, None, dtype=object)
     if "ping_time" not in log or "p_TS_W" not in log:
         sonar = scenario.sonar
         if _sonar_timing_on(scenario):
@@ -179,23 +173,40 @@ def ping_arrivals(
         q = log["p_WU"] - log["p_WT"]
         return (
             np.where(valid, 0.0, np.nan),
-            np.zeros((steps, 2), int),
-            np.stack([q + half, q - half], 1),
+            np.zeros(shape, int),
+            np.stack([q + half, q - half], -2),
+            errors,
         )
-    tau = np.full((steps, 2), np.nan)
-    lag = np.zeros((steps, 2), int)
-    p_TS = np.zeros((steps, 2, 3))
-    ticks, sonars = np.nonzero(valid)
-    ping_time = log["ping_time"][ticks, sonars]
-    step = np.floor(ping_time / t + _STEP_TOLERANCE).astype(int)
-    if np.any((step < 0) | (step > ticks)):
-        raise ValueError(f"log: ping_time {ping_time} must be at or before the arrival ticks")
-    if len(set(zip(step, sonars, strict=True))) < len(step):
-        raise ValueError("log: a sonar's ping of one step arrives twice")
-    tau[step, sonars] = np.maximum(ping_time - step * t, 0.0)
-    lag[step, sonars] = ticks - step
-    p_TS[step, sonars] = log["p_TS_W"].reshape(steps, 2, 3)[ticks, sonars]
-    return tau, lag, p_TS
+    runs = int(np.prod(lead, dtype=int))
+    valid = valid.reshape(runs, steps, 2)
+    tau = np.full((runs, steps, 2), np.nan)
+    lag = np.zeros((runs, steps, 2), int)
+    p_TS = np.zeros((runs, steps, 2, 3))
+    run, ticks, sonars = np.nonzero(valid)
+    ping_time = log["ping_time"].reshape(runs, steps, 2)[run, ticks, sonars]
+    with np.errstate(invalid="ignore"):
+        step = np.floor(ping_time / t + _STEP_TOLERANCE)
+        late = ~((step >= 0) & (step <= ticks))  # NaN too
+    step = np.where(late, 0, step).astype(int)
+    key = (run * steps + step) * 2 + sonars
+    order = np.argsort(key, kind="stable")
+    twice = np.zeros(len(key), bool)
+    twice[order[1:]] = key[order[1:]] == key[order[:-1]]
+    flat = errors.reshape(-1)
+    for r in np.unique(run[twice]):  # rare: a run's log is wrong
+        flat[r] = "log: a sonar's ping of one step arrives twice"
+    for r in np.unique(run[late]):
+        flat[r] = f"log: ping_time {ping_time[run == r]} must be at or before the arrival ticks"
+    read = np.array([error is None for error in flat], bool)[run]
+    run, ticks, sonars, step, ping_time = (a[read] for a in (run, ticks, sonars, step, ping_time))
+    tau[run, step, sonars] = np.maximum(ping_time - step * t, 0.0)
+    lag[run, step, sonars] = ticks - step
+    p_TS[run, step, sonars] = log["p_TS_W"].reshape(runs, steps, 2, 3)[run, ticks, sonars]
+    return tau.reshape(shape), lag.reshape(shape), p_TS.reshape(*shape, 3), errors
+
+
+#: The signals of a run's true state and baseline: a run with a non-finite one has failed.
+_STATE = ("p_WU", "v_WU", "p_WT", "v_WT", "R_WB", "b_W")
 
 
 def extended_bound(log: dict[str, np.ndarray], scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
@@ -217,55 +228,78 @@ def extended_bound(log: dict[str, np.ndarray], scenario: Scenario) -> tuple[np.n
 
     The bound is the estimator's whatever it believes (``estimator.error_model`` does not
     enter): it is what the data allow.
+
+    A batch log (B×N×…) gives each run's (B×N×6×6 each), the same bits as the run alone, all
+    runs in one pass. A failed run (a non-finite true state or baseline) is NaN where its
+    recursion meets the failure, and all NaN if its pings cannot be read; a sound run whose
+    pings cannot be read raises.
     """
+    single = log["p_WU"].ndim == 2
+    runs = batch_log(log) if single else log
     t = scenario.time_step
     nav = scenario.navigation.error_figures()
     motion = scenario.estimator.vehicle_motion
-    tau, lag, p_TS = ping_arrivals(log, scenario)
-    R_WB = log["R_WB"]
-    Sigma = rotation_vector_covariance(R_WB, nav.attitude_noise)
-    W = np.asarray(scenario.target.acceleration_covariance, dtype=float)
-    if motion == "commanded":
-        W = W + commanded_acceleration_noise(log["u1_W"], Sigma)
-    velocity = np.zeros((len(R_WB), 3, 3))
-    if motion == "navigation":  # the navigated velocity's error Σ_ev, on the true motion
-        velocity += navigated_velocity_covariance(
-            log["v_WU"], Sigma, nav.velocity_noise, nav.velocity_bias
+    tau, lag, p_TS, errors = _read_pings(runs, scenario)
+    failed = np.array([error is not None for error in errors], bool)
+    if failed.any():
+        sound = np.ones(len(failed), bool)
+        for name in _STATE:
+            sound &= np.isfinite(runs[name]).reshape(len(failed), -1).all(axis=1)
+        if (failed & sound).any():
+            raise ValueError(errors[np.flatnonzero(failed & sound)[0]])
+    R_WB = runs["R_WB"]
+    with np.errstate(invalid="ignore", over="ignore"):  # a failed run's NaN and inf
+        Sigma = rotation_vector_covariance(R_WB, nav.attitude_noise)
+        W = np.asarray(scenario.target.acceleration_covariance, dtype=float)
+        if motion == "commanded":
+            W = W + commanded_acceleration_noise(runs["u1_W"], Sigma)
+        velocity = np.zeros(R_WB.shape)
+        if motion == "navigation":  # the navigated velocity's error Σ_ev, on the true motion
+            velocity += navigated_velocity_covariance(
+                runs["v_WU"], Sigma, nav.velocity_noise, nav.velocity_bias
+            )
+        bound = pcrlb_timed(
+            tau,
+            lag,
+            p_TS,
+            _range_noise(tau, p_TS, R_WB, Sigma, scenario),
+            np.asarray(scenario.estimator.initial_covariance, dtype=float),
+            W,
+            t,
+            position_noise=t * t * velocity,
         )
-    bound = pcrlb_timed(
-        tau,
-        lag,
-        p_TS,
-        _range_noise(tau, p_TS, R_WB, Sigma, scenario),
-        np.asarray(scenario.estimator.initial_covariance, dtype=float),
-        W,
-        t,
-        position_noise=t * t * velocity,
-    )
-    bound[:, 3:, 3:] += velocity
-    q, velocity = log["p_WU"] - log["p_WT"], log["v_WU"] - log["v_WT"]
-    floor = heading_bias_floor(q, velocity, nav.heading_bias)
-    floor += sound_speed_floor(q, scenario.sonar.sound_speed_error)
-    return bound, floor
+        bound[..., 3:, 3:] += velocity
+        q = (runs["p_WU"] - runs["p_WT"]).reshape(-1, 3)
+        floor = heading_bias_floor(
+            q, (runs["v_WU"] - runs["v_WT"]).reshape(-1, 3), nav.heading_bias
+        )
+        floor += sound_speed_floor(q, scenario.sonar.sound_speed_error)
+    floor = floor.reshape(bound.shape)
+    bound[failed] = np.nan
+    floor[failed] = np.nan
+    return (bound[0], floor[0]) if single else (bound, floor)
 
 
 def _range_noise(
     tau: np.ndarray, p_TS: np.ndarray, R_WB: np.ndarray, Sigma: np.ndarray, scenario: Scenario
 ) -> np.ndarray:
-    """The covariance (N×2×2) of each step's two range errors: ``diag(η/f) + J Σ_θ Jᵀ``, the
-    baseline at each ping from the attitude's geodesic between the step's ticks."""
+    """The covariance (B×N×2×2) of each step's two range errors: ``diag(η/f) + J Σ_θ Jᵀ``,
+    the baseline at each ping from the attitude's geodesic between the step's ticks (every
+    ping of every run at once: :func:`~drake_uuv.models.ping_geometry.
+    interpolate_attitude_runs`)."""
     sonar = scenario.sonar
     noise = np.zeros(tau.shape + (2,))
-    noise[:, [0, 1], [0, 1]] = (
+    noise[..., [0, 1], [0, 1]] = (
         np.asarray(sonar.noise_variances, dtype=float) / sonar.samples_per_step
     )
-    if not np.any(Sigma):
+    if not np.any(scenario.navigation.error_figures().attitude_noise):
         return noise
-    b = np.asarray(sonar.baseline, dtype=float)
+    run, step, sonar_index = np.nonzero(np.isfinite(tau))
+    following = np.minimum(step + 1, tau.shape[1] - 1)  # a ping at τ > 0 has a next tick
+    R = interpolate_attitude_runs(
+        R_WB[run, step], R_WB[run, following], tau[run, step, sonar_index] / scenario.time_step
+    )
     q_s = np.zeros(p_TS.shape)
-    for k, i in zip(*np.nonzero(np.isfinite(tau)), strict=True):
-        s = tau[k, i] / scenario.time_step
-        R = R_WB[k] if s == 0.0 else interpolate_attitude(R_WB[k], R_WB[k + 1], s)
-        q_s[k, i] = R @ b
+    q_s[run, step, sonar_index] = R @ np.asarray(sonar.baseline, dtype=float)
     J = range_attitude_jacobian(p_TS, q_s)
     return noise + J @ Sigma @ np.swapaxes(J, -1, -2)

@@ -1,7 +1,9 @@
 """The per-run PCRLB with each range at its ping time, counted once it has arrived.
 
-Pure numpy; extends the recursion of :mod:`drake_uuv.models.pcrlb` (Tichavský, Muravchik,
-Nehorai 1998) to sonars that ping between ticks and ranges that reach the estimator late.
+Extends the recursion of :mod:`drake_uuv.models.pcrlb` (Tichavský, Muravchik, Nehorai 1998)
+to sonars that ping between ticks and ranges that reach the estimator late. The recursion is a
+compiled loop over runs and steps (:mod:`drake_uuv.models.pcrlb_timed_kernels`: numpy's cost
+per call would dominate its small matrices); the rest is numpy.
 
 Ranges at their ping times
 --------------------------
@@ -33,8 +35,9 @@ A ping of step k that arrives at tick ``k + d`` informs the estimate at tick j o
 ``k ≤ j − D`` are *complete* at tick j: the bound at j is the recursion over all complete
 steps (one run, shared by every tick), fast-forwarded through steps ``j − D .. j − 1`` with
 only the pings that have arrived by j, then the tick's own update with its pings at
-``τ = 0`` that arrive at once (``d = 0``). The fast-forward runs for all ticks at once, ``D``
-batched steps.
+``τ = 0`` that arrive at once (``d = 0``). Step ``j − D`` is complete at j, so the
+fast-forward starts from the complete recursion's ``P⁻_{j−D+1}``: ``D − 1`` steps a tick
+(none without latency). ``D`` is each run's own.
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ import numpy as np
 
 from drake_uuv.models.measurement import MIN_RANGE
 from drake_uuv.models.pcrlb import symmetrise
+from drake_uuv.models.pcrlb_timed_kernels import timed_bound_kernel
 
 
 def ping_rows(tau: np.ndarray, los: np.ndarray) -> np.ndarray:
@@ -65,53 +69,41 @@ def step_transition(tau: float) -> np.ndarray:
     return G
 
 
-def ping_information(
-    tau: np.ndarray, lag: np.ndarray, p_TS: np.ndarray, noise: np.ndarray, window: int
-) -> np.ndarray:
-    """Each step's information on its ``z`` (N × (window+1) × 9 × 9), by arrival lag.
-
-    Entry ``[k, ℓ]`` is ``Hᵀ R⁻¹ H`` over the pings of step k that arrive within ``ℓ`` ticks
-    (``lag ≤ ℓ``); ``ℓ = window`` counts all of them. ``tau`` (N×2) is each sonar's ping
-    offset in its step (NaN: no range of that ping ever arrives, e.g. dropped), ``lag``
-    (N×2, int) its arrival tick minus k, ``p_TS`` (N×2×3) its sonar's position relative to
-    the target at the ping (the range is its norm), ``noise`` (N×2×2) the covariance of the
-    step's two range errors. A subset of the two pings has the
-    information of its own rows and the marginal of ``noise``: the absent ping's row is
-    zeroed and its noise decoupled (unit variance, no cross term).
-    """
-    tau = np.asarray(tau, dtype=float)
-    present = np.isfinite(tau)
-    p_TS = np.where(present[..., None], p_TS, 1.0)
-    los = p_TS / np.maximum(np.linalg.norm(p_TS, axis=-1, keepdims=True), MIN_RANGE)
-    rows = ping_rows(np.where(present, tau, 0.0), los)
-    noise = np.asarray(noise, dtype=float)
-    out = np.empty((tau.shape[0], window + 1, 9, 9))
-    for ell in range(window + 1):
-        counted = present & (np.asarray(lag) <= ell)
-        h = np.where(counted[..., None], rows, 0.0)
-        both = counted[:, :, None] & counted[:, None, :]
-        R = np.where(both, noise, np.eye(2))
-        out[:, ell] = np.swapaxes(h, -1, -2) @ np.linalg.solve(R, h)
-    return out
-
-
-def _check(tau: np.ndarray, lag: np.ndarray, time_step: float) -> tuple[np.ndarray, int]:
-    """Checks the pings' timing; returns the lags as ints and the window ``D``."""
-    tau = np.asarray(tau, dtype=float)
-    if tau.ndim != 2 or tau.shape[1] != 2:
-        raise ValueError(f"tau must have shape (N, 2), got {tau.shape}")
+def _check(
+    tau: np.ndarray, lag: np.ndarray, time_step: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Checks the pings' timing (…×N×2); returns which pings arrive, the lags as ints (0
+    where absent) and each run's window ``D`` (…)."""
+    if tau.ndim < 2 or tau.shape[-1] != 2:
+        raise ValueError(f"tau must have shape (N, 2) or (B, N, 2), got {tau.shape}")
     lag = np.asarray(lag)
     if lag.shape != tau.shape:
         raise ValueError(f"lag shape {lag.shape} differs from tau shape {tau.shape}")
     present = np.isfinite(tau)
-    lags = np.where(present, lag, 0).astype(int)
+    lags = np.where(present, lag, 0).astype(np.int64)
     if np.any(present & ((tau < 0.0) | (tau >= time_step))):
         raise ValueError(f"tau must be in [0, time_step = {time_step:g}), got {tau[present]}")
     if np.any(lags < 0):
         raise ValueError(f"lag must be ≥ 0, got {lags.min()}")
     if np.any(present & (tau > 0.0) & (lags == 0)):
         raise ValueError("a ping at tau > 0 cannot arrive at its own step's tick (lag 0)")
-    return lags, int(lags.max(initial=0))
+    return present, lags, lags.max(axis=(-2, -1), initial=0)
+
+
+def _per_step(value: np.ndarray, shape: tuple[int, ...], variances: bool = False) -> np.ndarray:
+    """A 3×3 covariance for each step of each run (…×N×3×3, C-contiguous) from one 3×3, one a
+    step (N×3×3) or one a step of each run; with ``variances``, a scalar or N per-axis
+    variances."""
+    value = np.asarray(value, dtype=float)
+    if variances and value.ndim < 2:
+        value = value[..., None, None] * np.eye(3)
+    return _owned(value, (*shape, 3, 3))
+
+
+def _owned(value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` broadcast to ``shape``, as a new C-contiguous writable array (one type for
+    the kernel whatever the caller passed: one compiled version)."""
+    return np.array(np.broadcast_to(value, shape), dtype=float, order="C")
 
 
 def pcrlb_timed(
@@ -126,43 +118,42 @@ def pcrlb_timed(
 ) -> np.ndarray:
     """The bound (N×6×6) on the estimate at each tick from the ranges arrived by then.
 
-    ``tau``, ``lag``, ``p_TS``, ``noise`` as in :func:`ping_information` (N steps, sonar i of
-    step k in entry ``[k, i]``); ``P0`` (6×6) the prior ``P(0|−1)``; ``W`` (3×3, or N×3×3
-    per step) the covariance of the step's unknown acceleration; ``position_noise`` a position
+    ``tau`` (N×2) is each sonar's ping offset in its step [s] (NaN: no range of that ping
+    ever arrives, e.g. dropped), ``lag`` (N×2, int) its arrival tick minus k, ``p_TS``
+    (N×2×3) its sonar's position relative to the target at the ping (the range is its norm),
+    ``noise`` (N×2×2) the covariance of the step's two range errors (sonar i of step k in
+    entry ``[k, i]``); ``P0`` (6×6) the prior ``P(0|−1)``; ``W`` (3×3, or N×3×3 per step)
+    the covariance of the step's unknown acceleration; ``position_noise`` a position
     covariance added over each step: a per-axis variance (scalar, or N per step) or a 3×3
     matrix (or N×3×3 per step). See the module docstring.
+
+    A step's information on its ``z`` is ``Hᵀ R⁻¹ H`` over the pings counted: a subset of the
+    two pings has the information of its own rows and the marginal of ``noise``.
+
+    Runs: ``tau``, ``lag``, ``p_TS``, ``noise`` with a leading run axis (B×N×…; ``W`` and
+    ``position_noise`` as above, or a 3×3 matrix per step of each run, B×N×3×3) give each
+    run's bound (B×N×6×6), each the same bits as alone. The recursion is compiled
+    (:mod:`drake_uuv.models.pcrlb_timed_kernels`); a run whose matrix to invert is not
+    positive definite (NaN in its trajectory) is NaN from that step on.
     """
-    lags, window = _check(tau, lag, time_step)
-    steps = lags.shape[0]
-    info = ping_information(tau, lags, p_TS, noise, window)
-    W_inv = np.linalg.inv(np.broadcast_to(np.asarray(W, dtype=float), (steps, 3, 3)))
-    Qp = np.zeros((steps, 6, 6))
-    position_noise = np.asarray(position_noise, dtype=float)
-    if position_noise.ndim < 2:  # per-axis variances
-        position_noise = position_noise[..., None, None] * np.eye(3)
-    Qp[:, :3, :3] = np.broadcast_to(position_noise, (steps, 3, 3))
-    G = step_transition(time_step)
-
-    def advance(P: np.ndarray, k: np.ndarray, information: np.ndarray) -> np.ndarray:
-        """``P⁻_{k+1}`` from ``P⁻_k`` through step k with the given information (batched)."""
-        J = np.zeros(P.shape[:-2] + (9, 9))
-        J[..., :6, :6] = np.linalg.inv(P)
-        J[..., 6:, 6:] = W_inv[k]
-        P_z = symmetrise(np.linalg.inv(symmetrise(J + information)))
-        return symmetrise(G @ P_z @ G.T + Qp[k])
-
-    complete = np.empty((steps, 6, 6))
-    complete[0] = symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
-    for k in range(steps - 1):
-        complete[k + 1] = advance(complete[k], np.array(k), info[k, window])
-    ticks = np.arange(steps)
-    start = np.maximum(ticks - window, 0)
-    P = complete[start]
-    for m in range(window):  # the last steps, with what has arrived by each tick
-        k = start + m
-        active = k < ticks
-        k = np.minimum(k, steps - 1)
-        ell = np.clip(ticks - k, 0, window)
-        P = np.where(active[:, None, None], advance(P, k, info[k, ell]), P)
-    J = np.linalg.inv(P) + info[:, 0, :6, :6]  # the tick's own pings (τ = 0, lag 0)
-    return symmetrise(np.linalg.inv(symmetrise(J)))
+    tau = np.asarray(tau, dtype=float)
+    present, lags, windows = _check(tau, lag, time_step)
+    steps = tau.shape[-2]
+    p_TS = np.where(present[..., None], np.asarray(p_TS, dtype=float), 1.0)
+    los = p_TS / np.maximum(np.linalg.norm(p_TS, axis=-1, keepdims=True), MIN_RANGE)
+    rows = np.where(present[..., None], ping_rows(np.where(present, tau, 0.0), los), 0.0)
+    shape = tau.shape[:-1]
+    bounds = np.empty((*shape, 6, 6))
+    timed_bound_kernel(
+        np.ascontiguousarray(rows).reshape(-1, steps, 2, 9),
+        _owned(noise, (*shape, 2, 2)).reshape(-1, steps, 2, 2),
+        np.ascontiguousarray(present).reshape(-1, steps, 2),
+        np.ascontiguousarray(lags).reshape(-1, steps, 2),
+        np.ascontiguousarray(windows).reshape(-1),
+        symmetrise(np.asarray(P0, dtype=float).reshape(6, 6)),
+        _per_step(W, shape).reshape(-1, steps, 3, 3),
+        _per_step(position_noise, shape, variances=True).reshape(-1, steps, 3, 3),
+        float(time_step),
+        bounds.reshape(-1, steps, 6, 6),
+    )
+    return bounds

@@ -115,6 +115,21 @@ def test_ping_arrivals_recover_each_pings_step_offset_and_geometry() -> None:
         assert_allclose(p_TS[k, i], q + sign * q_s, rtol=1e-12, atol=1e-12)
 
 
+def test_ping_arrivals_of_a_batch_are_each_runs() -> None:
+    """Two runs as a batch log (dropped pings in one): each run's arrivals as alone; a run
+    whose sonar's ping of one step arrives twice is refused."""
+    scenario = _scenario("sonar.ping_offsets=[0.1, 0.3]", "sonar.latency=0.6")
+    runs = [_synthetic_log(scenario, 1, dropped={(5, 1)}), _synthetic_log(scenario, 2)]
+    log = {name: np.stack([run[name] for run in runs]) for name in runs[0]}
+    batch = ping_arrivals(log, scenario)
+    for i, run in enumerate(runs):
+        for part, alone in zip(batch, ping_arrivals(run, scenario), strict=True):
+            assert np.array_equal(part[i], alone, equal_nan=True)
+    log["ping_time"][1, 12, 0] = log["ping_time"][1, 11, 0]
+    with pytest.raises(ValueError, match="log: a sonar's ping of one step arrives twice"):
+        ping_arrivals(log, scenario)
+
+
 def test_without_errors_the_bound_is_todays_to_the_bit_and_the_extension_to_rounding() -> None:
     scenario = _scenario(NO_ERRORS)
     log = _synthetic_log(scenario)

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from drake_uuv.models.pcrlb import pcrlb_along_trajectory
+from drake_uuv.models.measurement import MIN_RANGE
+from drake_uuv.models.pcrlb import pcrlb_along_trajectory, symmetrise
 from drake_uuv.models.pcrlb_timed import pcrlb_timed, ping_rows, step_transition
 from tests.conftest import ETA_UNEQUAL, T, W
 
@@ -240,3 +241,122 @@ def test_bad_timing_is_named() -> None:
         pcrlb_timed(np.full((3, 2), 0.1), 0 * lag, p_TS, noise, np.eye(6), W, T)
     with pytest.raises(ValueError, match=r"tau must have shape \(N, 2\)"):
         pcrlb_timed(np.zeros(3), lag, p_TS, noise, np.eye(6), W, T)
+
+
+# --- The reference: the recursion in numpy, step by step (the kernel's independent twin) ------
+
+
+def _reference_information(tau, lag, p_TS, noise, window: int) -> np.ndarray:
+    """Each step's information on its ``z`` (N × (window+1) × 9 × 9) by arrival lag: entry
+    ``[k, ℓ]`` is ``Hᵀ R⁻¹ H`` over the pings of step k with ``lag ≤ ℓ`` (an absent ping's
+    row zeroed and its noise decoupled)."""
+    present = np.isfinite(tau)
+    p_TS = np.where(present[..., None], p_TS, 1.0)
+    los = p_TS / np.maximum(np.linalg.norm(p_TS, axis=-1, keepdims=True), MIN_RANGE)
+    rows = ping_rows(np.where(present, tau, 0.0), los)
+    out = np.empty((tau.shape[0], window + 1, 9, 9))
+    for ell in range(window + 1):
+        counted = present & (lag <= ell)
+        h = np.where(counted[..., None], rows, 0.0)
+        both = counted[:, :, None] & counted[:, None, :]
+        R = np.where(both, noise, np.eye(2))
+        out[:, ell] = np.swapaxes(h, -1, -2) @ np.linalg.solve(R, h)
+    return out
+
+
+def reference_pcrlb_timed(tau, lag, p_TS, noise, P0, W, time_step, position_noise=0.0):
+    """:func:`pcrlb_timed` of one run as numpy wrote it: the complete recursion, then every
+    tick's fast-forward through the last ``D`` steps batched over the ticks."""
+    tau = np.asarray(tau, dtype=float)
+    present = np.isfinite(tau)
+    lags = np.where(present, lag, 0).astype(int)
+    window = int(lags.max(initial=0))
+    steps = lags.shape[0]
+    info = _reference_information(tau, lags, p_TS, np.asarray(noise, dtype=float), window)
+    W_inv = np.linalg.inv(np.broadcast_to(np.asarray(W, dtype=float), (steps, 3, 3)))
+    Qp = np.zeros((steps, 6, 6))
+    position_noise = np.asarray(position_noise, dtype=float)
+    if position_noise.ndim < 2:  # per-axis variances
+        position_noise = position_noise[..., None, None] * np.eye(3)
+    Qp[:, :3, :3] = np.broadcast_to(position_noise, (steps, 3, 3))
+    G = step_transition(time_step)
+
+    def advance(P: np.ndarray, k: np.ndarray, information: np.ndarray) -> np.ndarray:
+        J = np.zeros(P.shape[:-2] + (9, 9))
+        J[..., :6, :6] = np.linalg.inv(P)
+        J[..., 6:, 6:] = W_inv[k]
+        P_z = symmetrise(np.linalg.inv(symmetrise(J + information)))
+        return symmetrise(G @ P_z @ G.T + Qp[k])
+
+    complete = np.empty((steps, 6, 6))
+    complete[0] = symmetrise(np.asarray(P0, dtype=float).reshape(6, 6))
+    for k in range(steps - 1):
+        complete[k + 1] = advance(complete[k], np.array(k), info[k, window])
+    ticks = np.arange(steps)
+    start = np.maximum(ticks - window, 0)
+    P = complete[start]
+    for m in range(window):
+        k = start + m
+        active = k < ticks
+        k = np.minimum(k, steps - 1)
+        ell = np.clip(ticks - k, 0, window)
+        P = np.where(active[:, None, None], advance(P, k, info[k, ell]), P)
+    J = np.linalg.inv(P) + info[:, 0, :6, :6]
+    return symmetrise(np.linalg.inv(symmetrise(J)))
+
+
+def _random_case(steps: int, rng: np.random.Generator, latency: float | None = None):
+    """Random offsets (some at the tick), latency, dropped pings, correlated noise, a
+    per-step W and a full position noise."""
+    offsets = np.where(rng.random(2) < 0.3, 0.0, rng.uniform(0.0, T, 2))
+    if latency is None:
+        latency = rng.choice([0.0, rng.uniform(0.0, 3.0)])
+    tau, lag = _timing(steps, tuple(offsets), latency, rng)
+    q, q_s = _geometry(steps, int(rng.integers(1000)))
+    p_TS = np.stack([q + 0.5 * q_s, q - 0.5 * q_s], axis=1)
+    noise = _noise(steps, rng)
+    Ws = W + 0.002 * rng.random((steps, 1, 1)) * np.eye(3)
+    L = 0.03 * rng.standard_normal((steps, 3, 3))
+    position_noise = L @ np.swapaxes(L, 1, 2) + 1e-6 * np.eye(3)
+    return tau, lag, p_TS, noise, Ws, position_noise
+
+
+def test_the_kernel_is_the_numpy_recursion_on_random_timings() -> None:
+    """Random offsets, latencies (none, or up to six steps) and dropped pings: the compiled
+    recursion equals the numpy one to rounding."""
+    rng = np.random.default_rng(11)
+    P0 = np.diag([1.0, 2.0, 0.5, 0.3, 0.2, 0.1])
+    for latency in (0.0, 0.2, 0.7, 2.9, None, None, None):
+        tau, lag, p_TS, noise, Ws, Qp = _random_case(80, rng, latency)
+        mine = pcrlb_timed(tau, lag, p_TS, noise, P0, Ws, T, position_noise=Qp)
+        reference = reference_pcrlb_timed(tau, lag, p_TS, noise, P0, Ws, T, position_noise=Qp)
+        assert_allclose(mine, reference, rtol=1e-10, atol=1e-10 * np.abs(reference).max())
+        scalar = pcrlb_timed(tau, lag, p_TS, noise, P0, W, T, position_noise=1e-4)
+        expected = reference_pcrlb_timed(tau, lag, p_TS, noise, P0, W, T, position_noise=1e-4)
+        assert_allclose(scalar, expected, rtol=1e-10, atol=1e-10 * np.abs(expected).max())
+
+
+def test_a_batch_is_each_run_alone_bit_for_bit() -> None:
+    """Runs of different windows (no latency, one step, several) and a run with NaN in its
+    geometry from step 20 on: each run's bound is its bits alone, in any order and batch
+    size; the NaN run is finite before its NaN pings arrive and NaN at the end."""
+    rng = np.random.default_rng(12)
+    steps = 40
+    cases = [_random_case(steps, rng, latency) for latency in (0.0, 0.3, 1.7, 0.0, 0.9)]
+    cases[3][2][20:] = np.nan  # p_TS of run 3
+    tau, lag, p_TS, noise, Ws, Qp = (np.stack(parts) for parts in zip(*cases, strict=True))
+    P0 = np.eye(6)
+    batch = pcrlb_timed(tau, lag, p_TS, noise, P0, Ws, T, position_noise=Qp)
+    assert batch.shape == (5, steps, 6, 6)
+    for i, case in enumerate(cases):
+        tau_i, lag_i, p_TS_i, noise_i, Ws_i, Qp_i = case
+        alone = pcrlb_timed(tau_i, lag_i, p_TS_i, noise_i, P0, Ws_i, T, position_noise=Qp_i)
+        assert np.array_equal(batch[i], alone, equal_nan=True), i
+    order = [4, 2, 0, 3, 1]
+    again = pcrlb_timed(
+        tau[order], lag[order], p_TS[order], noise[order], P0, Ws[order], T,
+        position_noise=Qp[order],
+    )  # fmt: skip
+    assert np.array_equal(again, batch[order], equal_nan=True)
+    assert np.isfinite(batch[3, :20]).all() and np.isnan(batch[3, 25:]).all()
+    assert np.isfinite(batch[[0, 1, 2, 4]]).all()
