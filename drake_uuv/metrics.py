@@ -196,9 +196,9 @@ def batch_metrics(log: dict[str, np.ndarray], scenario: Scenario) -> dict[str, n
     same bits as :func:`run_metrics` of run i's own log, whatever B and its place. A run
     with NaN or inf in its log has NaN or inf metrics and leaves the others.
 
-    Vectorised over runs (compiled loops for the bounds' recursions, the NEES and the
-    excitation's eigenvalues), by chunks of :data:`METRICS_CHUNK` runs; the extended bound
-    (navigation errors, sonar timing: :func:`bound_errors_on`) is one run at a time.
+    Vectorised over runs (compiled loops for the bounds' recursions, the extended bound's
+    included, the NEES and the excitation's eigenvalues), by chunks of :data:`METRICS_CHUNK`
+    runs.
     """
     if np.ndim(log["p_WU"]) != 3 or len(log["p_WU"]) == 0:
         raise ValueError(f"log: p_WU must have shape (B ≥ 1, N, 3), got {np.shape(log['p_WU'])}")
