@@ -11,7 +11,6 @@ import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, System
-from threadpoolctl import ThreadpoolController
 
 from drake_uuv.diagnostics import RunWarning, run_warnings
 from drake_uuv.diagram import UuvDiagram, make_uuv_diagram
@@ -19,6 +18,7 @@ from drake_uuv.io import write_json_atomic, write_npz_atomic
 from drake_uuv.metrics import batch_metrics, metric_signals
 from drake_uuv.models.tracking_laws import closed_loop_eigenvalues
 from drake_uuv.monitor import EstimatorHealthMonitor, SimulationFailure
+from drake_uuv.primitives.threads import one_blas_thread
 from drake_uuv.scenario import Scenario
 
 
@@ -237,7 +237,7 @@ class ClosedLoopSimulation:
         self._stopped = None
         simulator.set_monitor(self.monitor)
         try:
-            with _one_blas_thread():
+            with one_blas_thread():
                 simulator.Initialize()
                 simulator.AdvanceTo((scenario.steps - 1) * scenario.time_step)
         except RuntimeError as e:
@@ -257,7 +257,7 @@ class ClosedLoopSimulation:
             ) from e
         log = log_from_loggers(self.built, context, scenario.steps)
         failures = list(self.monitor.failures)
-        with _one_blas_thread():
+        with one_blas_thread():
             metrics = _batch_metrics(log, scenario, failures)
         metrics.update(
             tracking_spectral_radius=np.full(len(seeds), self.tracking_spectral_radius),
@@ -265,21 +265,6 @@ class ClosedLoopSimulation:
             seed=seeds.astype(float),
         )
         return BatchResult(scenario, seeds, log, metrics, failures)
-
-
-_blas: ThreadpoolController | None = None
-
-
-def _one_blas_thread():
-    """A context in which BLAS uses one thread. The loop's products are small (6×6 over runs,
-    6×N over particles): OpenBLAS splits them over threads from about 10⁴ elements on, and
-    waking the threads costs more than the product, the more so beside a study's other
-    workers (the realistic run took 12.8 s of CPU for 9 s of wall with the default threads,
-    7.4 s with one)."""
-    global _blas
-    if _blas is None:  # found once: inspecting the loaded libraries takes milliseconds
-        _blas = ThreadpoolController()
-    return _blas.limit(limits=1, user_api="blas")
 
 
 def _batch_metrics(

@@ -29,6 +29,7 @@ from drake_uuv.hardware.channels import READY, check_url
 from drake_uuv.hardware.halves import Half, LcmTimeout
 from drake_uuv.metrics import run_metrics
 from drake_uuv.models.tracking_laws import closed_loop_eigenvalues
+from drake_uuv.primitives.threads import on_one_blas_thread
 from drake_uuv.scenario import Scenario
 from drake_uuv.signals import Signal, logged_signals
 from drake_uuv.simulation import SimulationResult
@@ -70,6 +71,7 @@ def _log(rows: list[dict[str, np.ndarray]], signals: list[Signal], t: float) -> 
     return log
 
 
+@on_one_blas_thread  # as ClosedLoopSimulation steps: the same bits
 def run_lcm(scenario: Scenario, url: str = "memq://", timeout: float = 10.0) -> SimulationResult:
     """Runs ``scenario`` (seeded by its ``random_seed``) as its two halves over LCM at ``url``,
     in this process, in lockstep: the result of :meth:`ClosedLoopSimulation.run`, bit for bit
@@ -106,6 +108,7 @@ def run_lcm(scenario: Scenario, url: str = "memq://", timeout: float = 10.0) -> 
     return SimulationResult(scenario=scenario, log=log, metrics=metrics, warnings=warnings)
 
 
+@on_one_blas_thread  # as ClosedLoopSimulation steps: the same bits
 def run_vehicle(
     scenario: Scenario, url: str, timeout: float = 30.0, progress: Callable | None = None
 ) -> dict[str, np.ndarray]:
@@ -133,6 +136,7 @@ def run_vehicle(
     return _log(rows, signals, scenario.time_step)
 
 
+@on_one_blas_thread  # as ClosedLoopSimulation steps: the same bits
 def run_onboard(scenario: Scenario, url: str, timeout: float = 30.0) -> dict[str, np.ndarray]:
     """The onboard half alone over ``url``: says it is ready (``DRAKE_UUV_READY``, again
     until the vehicle answers), initializes from the vehicle's first messages and answers

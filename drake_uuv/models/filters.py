@@ -121,6 +121,7 @@ def ekf_update(
     R: np.ndarray,
     sonars: tuple[int, ...] | np.ndarray = (0, 1),
     second_order: str = "none",
+    correlation_steps: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """EKF update on the raw ranges, Joseph form.
 
@@ -136,6 +137,12 @@ def ekf_update(
     ``dᵢ + tr(P⊥ᵢ)/(2dᵢ)``, the mean of ``|q + e|`` under ``e ~ N(0, P_qq)`` to second order
     (:func:`second_order_range_terms`); ``"variance"`` adds the variance of that quadratic
     term, ``½ tr(H''ᵢ P H''ⱼ P)``, to ``R``; ``"full"`` both; ``"none"`` neither (the EKF).
+
+    ``correlation_steps`` multiplies that variance. The quadratic term is a function of the
+    estimate's error, which persists over the error's correlation time: over the τ updates a
+    filter averages while its error stays, the term adds τ times the variance an independent
+    noise would (a bias shared by N samples does not average out), so ``τ`` updates' worth
+    counts at each (1: Gelb's, as if independent from update to update).
     """
     rows, z, R = _select(z, R, sonars)
     H = range_jacobian(x_pred, q_s)[rows]
@@ -145,7 +152,7 @@ def ekf_update(
         if second_order in ("mean", "full"):
             h = h + mean[rows]
         if second_order in ("variance", "full"):
-            R = R + covariance[np.ix_(rows, rows)]
+            R = R + correlation_steps * covariance[np.ix_(rows, rows)]
     nu = z - h
     S = H @ P_pred @ H.T + R
     K = np.linalg.solve(S, H @ P_pred).T  # P Hᵀ S⁻¹ (S, P symmetric)

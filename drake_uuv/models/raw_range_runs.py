@@ -97,11 +97,11 @@ SECOND_ORDER_CODES = {"none": 0, "mean": 1, "variance": 2, "full": 3}
 
 
 @njit(cache=True, error_model="numpy")
-def _second_order(P, H, h, m, order, Rm):
+def _second_order(P, H, h, m, order, scale, Rm):
     """Gelb's second-order terms of the ranges (Hessian ``(I − u uᵀ)/d`` on ``q``, ``u = H``'s
     row): the mean ``tr(P⊥)/(2d)`` added to ``h`` and, between ranges a and b,
-    ``½ tr(M_a P M_b P)/(d_a d_b)`` (the variance of ``½ eᵀ H'' e`` for Gaussian ``e``) added
-    to ``Rm``."""
+    ``½ tr(M_a P M_b P)/(d_a d_b)`` (the variance of ``½ eᵀ H'' e`` for Gaussian ``e``) times
+    ``scale`` (the error's correlation in steps) added to ``Rm``."""
     Mp = np.empty((2, 3, 3))  # (I − u uᵀ) P_qq of each range
     d = np.empty(2)  # the ranges at the estimate, before the mean term is added
     for a in range(m):
@@ -120,13 +120,13 @@ def _second_order(P, H, h, m, order, Rm):
                 for i in range(3):
                     for j in range(3):
                         s += Mp[a, i, j] * Mp[b, j, i]
-                Rm[a, b] += 0.5 * s / (d[a] * d[b])
+                Rm[a, b] += scale * 0.5 * s / (d[a] * d[b])
         if order & 1:
             h[a] += 0.5 * (Mp[a, 0, 0] + Mp[a, 1, 1] + Mp[a, 2, 2]) / d[a]
 
 
 @njit(cache=True, error_model="numpy")
-def _ekf(x, P, z, q_s, R, use, mask, order, x_out, P_out, nis_out):
+def _ekf(x, P, z, q_s, R, use, mask, order, scale, x_out, P_out, nis_out):
     rows = np.empty(2, np.int64)
     h, nu = np.empty(2), np.empty(2)
     H, Rm, S, Sinv = np.empty((2, 6)), np.empty((2, 2)), np.empty((2, 2)), np.empty((2, 2))
@@ -141,7 +141,7 @@ def _ekf(x, P, z, q_s, R, use, mask, order, x_out, P_out, nis_out):
         _ranges_and_rows(x[r], q_s, r, rows, m, h, H)
         _select_R(R, r, rows, m, Rm)
         if order != 0:
-            _second_order(P[r], H, h, m, order, Rm)
+            _second_order(P[r], H, h, m, order, scale, Rm)
         for a in range(m):
             nu[a] = z[r, rows[a]] - h[a]
         _gain(P[r], H, Rm, m, S, Sinv, K)
@@ -376,13 +376,15 @@ def ekf_update_runs(
     use: np.ndarray,
     mask: np.ndarray,
     second_order: str = "none",
+    correlation_steps: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`~drake_uuv.models.filters.ekf_update` of each run in ``mask`` on the sonars of
     ``use`` (B, 2): ``z`` (B, 2) the range means, ``q_s`` (B, 3), ``R`` (2, 2) or (B, 2, 2);
-    ``second_order`` the terms of the ranges' expansion it keeps (none, mean, variance, full)."""
+    ``second_order`` the terms of the ranges' expansion it keeps (none, mean, variance, full),
+    ``correlation_steps`` the factor of their variance."""
     out = _outputs(x, P)
     order = SECOND_ORDER_CODES[second_order]
-    _ekf(x, P, z, q_s, R.reshape(-1, 2, 2), use, mask, order, *out)
+    _ekf(x, P, z, q_s, R.reshape(-1, 2, 2), use, mask, order, float(correlation_steps), *out)
     return out
 
 
@@ -448,7 +450,7 @@ def range_update_runs(update: Callable) -> RangeUpdateRuns:
     function = update
     if isinstance(update, functools.partial):
         function, keywords = update.func, dict(update.keywords)
-    if function is ekf_update and set(keywords) <= {"second_order"}:
+    if function is ekf_update and set(keywords) <= {"second_order", "correlation_steps"}:
         return functools.partial(ekf_update_runs, **keywords) if keywords else ekf_update_runs
     if function is iekf_update and set(keywords) <= {"max_iterations", "tolerance", "max_halvings"}:
         return functools.partial(iekf_update_runs, **keywords)

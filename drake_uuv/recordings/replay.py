@@ -33,6 +33,7 @@ from drake_uuv.monitor import EstimatorHealthMonitor, SimulationFailure
 from drake_uuv.primitives import random_inputs
 from drake_uuv.primitives.batch import batch_size_field
 from drake_uuv.primitives.run_noise import RunNoise
+from drake_uuv.primitives.threads import one_blas_thread
 from drake_uuv.recordings.layout import RecordingError, Topics
 from drake_uuv.recordings.reader import Recording, read_recording
 from drake_uuv.scenario import Scenario
@@ -148,8 +149,9 @@ def replay(
     monitor = EstimatorHealthMonitor(built.systems["estimator"], scenario.time_step)
     simulator.set_monitor(monitor)
     try:
-        simulator.Initialize()
-        simulator.AdvanceTo((recording.steps - 1) * scenario.time_step)
+        with one_blas_thread():  # as a simulated run steps: the same bits
+            simulator.Initialize()
+            simulator.AdvanceTo((recording.steps - 1) * scenario.time_step)
     except RuntimeError as e:
         if monitor.failure is None:
             raise

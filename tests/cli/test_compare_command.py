@@ -60,7 +60,7 @@ def test_group_list_prints_every_group_and_runs_nothing(tmp_path, capsys, no_sim
     lines = text.splitlines()
     assert lines[0].split() == ["group", "variants", "runs", "description"]
     rows = {line.split()[0]: line.split()[1:3] for line in lines[1:-1]}
-    assert rows["tracking*"] == ["8", "56"] and rows["regimes"] == ["30", "210"]
+    assert rows["tracking*"] == ["8", "56"] and rows["regimes"] == ["30", str(24 * 7 + 6)]
     assert [name for name in rows if name.endswith("*")] == [f"{g}*" for g in PAPER_GROUPS]
     assert not out.exists()
 

@@ -7,7 +7,7 @@ from numpy.testing import assert_allclose
 from pydrake.math import RollPitchYaw, RotationMatrix
 
 from drake_uuv.estimators import EstimatorSetting, RangeDifferenceKalmanFilter, RangeFilter
-from drake_uuv.models.filters import ekf_update, range_difference_update
+from drake_uuv.models.filters import range_difference_update
 from drake_uuv.models.measurement import range_difference_noise
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
 from drake_uuv.models.navigation_noise import (
@@ -77,7 +77,7 @@ def test_the_ekf_adds_the_attitude_noise_of_the_ranges_to_r():
     q_s = R_WB @ B_BODY
     R = np.diag(ETA_UNEQUAL) + np.diag((0.005 * RANGES) ** 2)
     R += range_attitude_covariance(X0, q_s, rotation_vector_covariance(R_WB, ERRORS.attitude_noise))
-    x, P, nis = ekf_update(X0, P0, RANGES, q_s, R)
+    x, P, nis = Ekf().range_update()(X0, P0, RANGES, q_s, R)  # as configured by default
     assert_allclose(ekf.GetOutputPort("x_TU_hat").Eval(context), x, rtol=1e-12)
     assert ekf.GetOutputPort("nis").Eval(context)[0] == pytest.approx(nis, rel=1e-12)
     floor = heading_bias_floor(x[None, :3], x[None, 3:], ERRORS.heading_bias)[0]

@@ -11,7 +11,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import AddRandomInputs
 
 from drake_uuv.estimators import RangeFilter, make_estimator
-from drake_uuv.models.filters import ekf_update, iekf_update, predict, range_difference_update
+from drake_uuv.models.filters import iekf_update, predict, range_difference_update
 from drake_uuv.models.handover import HandoverRule, Phase, ThresholdHandover
 from drake_uuv.models.measurement import (
     DROPPED,
@@ -47,7 +47,9 @@ from tests.estimators.range_filters import (
     samples,
 )
 
-UPDATES = {"ekf": ekf_update, "iekf": iekf_update, "ukf": ukf_range_update}
+# The EKF's update as configured by default (second-order terms on).
+EKF_UPDATE = Ekf().range_update()
+UPDATES = {"ekf": EKF_UPDATE, "iekf": iekf_update, "ukf": ukf_range_update}
 
 
 @pytest.mark.parametrize("kind", ["ekf", "iekf", "ukf", "pf"])
@@ -100,7 +102,7 @@ def test_the_world_baseline_is_the_attitude_times_the_body_baseline() -> None:
          [0.0, 0.0, 1.0]]
     )  # fmt: skip
     context = context_of(system, R_WB_nav=R_WB.ravel())
-    x, _, _ = ekf_update(X0, P0, means(), R_WB @ Q_S, R)
+    x, _, _ = EKF_UPDATE(X0, P0, means(), R_WB @ Q_S, R)
     assert_allclose(filtered(system, context)[0], x, rtol=1e-13)
     assert_allclose(system.ranges(context).q_s[0], R_WB @ Q_S)
 
@@ -218,7 +220,7 @@ def test_hand_over_happens_and_the_system_tracks_the_numpy_steps() -> None:
             linear_steps += 1
             linear = not policy.handover_due(P, linear_steps)
         else:
-            x, P, _ = ekf_update(x, P, z, q_s, R)
+            x, P, _ = EKF_UPDATE(x, P, z, q_s, R)
         x_hat, P_hat, _, _ = filtered(system, context)
         assert_allclose(x_hat, x, rtol=1e-9, atol=1e-12)
         assert_allclose(P_hat, P, rtol=1e-9, atol=1e-14)
