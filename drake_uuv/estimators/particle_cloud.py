@@ -189,9 +189,15 @@ class ParticleCloud(LateRangeSteps):
             D = self._window.schedule.window
             self._jitter_index = host.DeclareDiscreteState(np.zeros(B * D * 6 * n))
         if self._window is not None:
-            # The late-range steps' work arrays (0-3) and the particles of the window's
-            # steps (4 and 5 in turn).
-            self._work = Workspace(n, arrays=6)
+            # The late-range steps' work arrays: numpy's for the periodic update (6×N), the
+            # kernels' (particle-major) for the window's steps.
+            self._work = Workspace(n, arrays=4)
+            self._steps = np.empty((2, n, STATE_SIZE))  # the window steps' particles in turn
+            self._moved = np.empty((n, STATE_SIZE))  # at an instant's ping time
+            self._weights = np.empty((2, n))  # the prior's and the posterior's
+            self._ranges_work = np.empty((n, 2))
+            self._no_jitter = np.zeros((0, n))
+            self._no_offset = np.zeros(STATE_SIZE)
         # The posterior, shared by the filtered output and the periodic update: (x, P, nis,
         # log weights, weights, and with late ranges each run's first step's (log weights,
         # acceleration) once the window is full, else None).

@@ -24,15 +24,8 @@ from threadpoolctl import ThreadpoolController
 
 from drake_uuv.estimators.ping_window import StepBatch
 from drake_uuv.estimators.timed_step import instant_ranges, instants
-from drake_uuv.models.particle_filter import (
-    STATE_SIZE,
-    defensive_draw,
-    normalised,
-    range_terms,
-    resample_regularised,
-    weigh,
-    weighted_moments,
-)
+from drake_uuv.models.particle_filter import STATE_SIZE, defensive_draw, resample_regularised
+from drake_uuv.models.particle_window_kernels import moments, move_into, prior_mean, weigh
 from drake_uuv.models.timing import transition
 from drake_uuv.primitives.batch import per_run
 
@@ -133,7 +126,7 @@ class LateRangeSteps:
     def _move(
         self, particles: np.ndarray, u: np.ndarray, G: np.ndarray, c: np.ndarray, out: np.ndarray
     ) -> np.ndarray:
-        """``G [xᵢ; uᵢ] + c`` of every particle (its state at a ping or the next tick), in
+        """``G [xᵢ; uᵢ] + c`` of every particle (6×N columns: its state at the next tick), in
         ``out``."""
         moved = np.matmul(G[:, :STATE_SIZE], particles, out=out)
         moved += np.matmul(G[:, STATE_SIZE:], u, out=self._work[3])
@@ -147,32 +140,41 @@ class LateRangeSteps:
         u: np.ndarray,
         step,
         out: np.ndarray,
-        jitter: np.ndarray | None = None,
+        jitter: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, list[float]]:
-        """One run's stored-frame particles at a step's tick (plus their ``jitter``, the
-        navigation's process noise), reweighted by its arrived ranges at their ping times
-        along each particle's path, and moved to the next tick (in ``out``)."""
+        """One run's stored-frame particles (N×6) at a step's tick (plus their ``jitter``
+        (6×N, or 0×N), the navigation's process noise), reweighted by its arrived ranges at
+        their ping times along each particle's path (accelerations ``u``, 3×N), and moved to
+        the next tick (in ``out``)."""
         host = self._host
-        if jitter is not None:
-            particles = particles + jitter
         t = host.time_step
-        a = np.zeros(3) if host.error_model.navigated_motion else step.acceleration
+        navigated = host.error_model.navigated_motion
+        a = np.zeros(3) if navigated else step.acceleration
+        moved, mean = self._moved, np.empty(STATE_SIZE)
+        prior, posterior = self._weights
         new_nis = []
         for instant in instants(step, paired=False):
             G, B = transition(instant.tau)
-            moved = self._move(particles, u, G, B @ a, self._work[2])
-            if host.error_model.navigated_motion:
-                moved += step.vehicle(instant.tau, t)[:, np.newaxis]
+            c = B @ a
+            if navigated:
+                c = c + step.vehicle(instant.tau, t)
+            move_into(particles, jitter, u, G, c, moved)
             q_s = step.attitude(instant.tau, t) @ host.baseline
             ranges = instant_ranges(host, instant, q_s, step)
-            prior = normalised(log_weights)  # for the error model's mean and the weighing
-            R = self._R if ranges.exact else ranges.covariance(self._R, moved @ prior)
-            terms = range_terms(moved, ranges.z, q_s, R, ranges.sonars, self._work)
-            nis, log_weights = weigh(log_weights, *terms, self._work, prior)
+            # The prior's mean, for the error model's noise there.
+            prior_mean(moved, self._no_offset, log_weights, prior, mean)
+            R = self._R if ranges.exact else ranges.covariance(self._R, mean)
+            weighed = np.empty(log_weights.shape)
+            nis = weigh(
+                moved, self._no_offset, log_weights, prior, ranges.z, ranges.valid, q_s, R,
+                self._ranges_work, weighed, posterior,
+            )  # fmt: skip
+            log_weights = weighed
             if np.any(step.new[instant.sonars]):
                 new_nis.append(nis)
         G, B = transition(t)
-        return self._move(particles, u, G, B @ a, out), log_weights, new_nis
+        move_into(particles, jitter, u, G, B @ a, out)
+        return out, log_weights, new_nis
 
     def _window_posterior(self, context: Context) -> tuple:
         """``(x, P, nis, log_weights, None, first)`` at this tick ((B, 6), (B, 6, 6), (B),
@@ -197,13 +199,13 @@ class LateRangeSteps:
             for r in np.flatnonzero(live):
                 with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
                     try:
-                        x[r], P[r], nis[r], log_weights[r], first[r] = self._run_posterior(
-                            context, [step.run(r) for step in steps], particles[r].T,
-                            prior[r], u[r], None if jitter is None else jitter[r], offset[r],
-                            ranges.run(r),
+                        nis[r], log_weights[r], first[r] = self._run_posterior(
+                            context, [step.run(r) for step in steps], particles[r], prior[r],
+                            u[r], None if jitter is None else jitter[r], offset[r],
+                            ranges.run(r), x[r], P[r],
                         )  # fmt: skip
                     except np.linalg.LinAlgError:  # a failed run: NaN, the others go on
-                        first[r] = None
+                        x[r], P[r], first[r] = np.nan, np.nan, None
         return x, P, nis, log_weights, None, first
 
     def _run_posterior(
@@ -216,31 +218,39 @@ class LateRangeSteps:
         jitter: np.ndarray | None,
         offset: np.ndarray,
         ranges,
+        x: np.ndarray,
+        P: np.ndarray,
     ) -> tuple:
-        """One run's ``(x, P, nis, log_weights, first)`` (see :meth:`_window_posterior`)."""
-        work = self._work
+        """One run's ``(nis, log_weights, first)`` (see :meth:`_window_posterior`), its
+        posterior's mean and covariance in ``x`` and ``P``. ``particles`` N×6 (stored
+        frame), ``u`` D×3×N, ``jitter`` D×6×N or None."""
         j = self._window.tick(context)
         D = self._window.schedule.window
         nis_total, first = [], None
         for i, step in enumerate(steps):
             slot = step.step - (j - D)
             particles, log_weights, new_nis = self._step(
-                particles, log_weights, u[slot], step, work[4 + i % 2],
-                None if jitter is None else jitter[slot],
+                particles, log_weights, u[slot], step, self._steps[i % 2],
+                self._no_jitter if jitter is None else jitter[slot],
             )  # fmt: skip
             nis_total += new_nis
             if first is None and j >= D:
                 first = (log_weights, step.acceleration)
-        relative = np.add(particles, offset[:, np.newaxis], out=work[2])
+        prior, posterior = self._weights
         if ranges.valid.any():  # this tick's own pings (no latency, at the tick)
-            prior = normalised(log_weights)
-            R = self._R if ranges.exact else ranges.covariance(self._R, relative @ prior)
-            terms = range_terms(relative, ranges.z, ranges.q_s, R, ranges.sonars, work)
-            nis, log_weights = weigh(log_weights, *terms, work, prior)
+            mean = np.empty(STATE_SIZE)
+            prior_mean(particles, offset, log_weights, prior, mean)
+            R = self._R if ranges.exact else ranges.covariance(self._R, mean)
+            weighed = np.empty(log_weights.shape)
+            nis = weigh(
+                particles, offset, log_weights, prior, ranges.z, ranges.valid, ranges.q_s, R,
+                self._ranges_work, weighed, posterior,
+            )  # fmt: skip
+            log_weights = weighed
             nis_total.append(nis)
-        x, P = weighted_moments(relative, normalised(log_weights), work)
+        moments(particles, offset, log_weights, posterior, x, P)
         nis = float(sum(nis_total)) if nis_total else math.nan
-        return x, P, nis, log_weights, first
+        return nis, log_weights, first
 
     @_on_one_blas_thread
     def advance_window(
@@ -303,7 +313,7 @@ class LateRangeSteps:
                             out[r].T, u_next[r], None if jitter_next is None else jitter_next[r],
                         )  # fmt: skip
                     out_log_weights[r] = weights
-                    x[r], P[r] = weighted_moments(out[r].T, normalised(weights), self._work)
+                    moments(out[r], self._no_offset, weights, self._weights[0], x[r], P[r])
                 except np.linalg.LinAlgError:  # a failed run: NaN, the others go on
                     out[r] = np.nan
                     out_log_weights[r] = np.nan
