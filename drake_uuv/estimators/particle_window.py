@@ -154,11 +154,11 @@ class LateRangeSteps:
         prior, posterior = self._weights
         new_nis = []
         for instant in instants(step, paired=False):
-            G, B = transition(instant.tau)
+            _, B = transition(instant.tau)
             c = B @ a
             if navigated:
                 c = c + step.vehicle(instant.tau, t)
-            move_into(particles, jitter, u, G, c, moved)
+            move_into(particles, jitter, u, float(instant.tau), c, moved)
             q_s = step.attitude(instant.tau, t) @ host.baseline
             ranges = instant_ranges(host, instant, q_s, step)
             # The prior's mean, for the error model's noise there.
@@ -172,8 +172,8 @@ class LateRangeSteps:
             log_weights = weighed
             if np.any(step.new[instant.sonars]):
                 new_nis.append(nis)
-        G, B = transition(t)
-        move_into(particles, jitter, u, G, B @ a, out)
+        _, B = transition(t)
+        move_into(particles, jitter, u, float(t), B @ a, out)
         return out, log_weights, new_nis
 
     def _window_posterior(self, context: Context) -> tuple:

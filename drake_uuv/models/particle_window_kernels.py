@@ -34,24 +34,28 @@ def move_into(
     particles: np.ndarray,
     jitter: np.ndarray,
     u: np.ndarray,
-    G: np.ndarray,
+    tau: float,
     c: np.ndarray,
     out: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """``out[i] = G [particles[i] + jitter[:, i]; u[:, i]] + c`` for every particle
-    (``particles``, ``out`` N×6; ``jitter`` 6×N, or 0×N for none; ``u`` 3×N; ``G`` 6×9)."""
+    """Every particle ``xᵢ = [q, ϑ] + jᵢ`` moved over ``τ`` by its acceleration ``uᵢ``:
+    ``[q + τ ϑ − ½τ² uᵢ, ϑ − τ uᵢ] + c``, i.e. ``G(τ) [xᵢ; uᵢ] + c`` with
+    :func:`~drake_uuv.models.timing.transition`'s ``G = [Φ(τ), −B(τ)]`` of the double
+    integrator, written out (``particles``, ``out`` N×6; ``jitter`` 6×N, or 0×N for none;
+    ``u`` 3×N)."""
     n = particles.shape[0]
     noisy = jitter.shape[0] == 6
-    x = np.empty(9)
+    half = 0.5 * tau * tau
     for i in range(n):
-        for k in range(6):
-            x[k] = particles[i, k] + jitter[k, i] if noisy else particles[i, k]
-        x[6], x[7], x[8] = u[0, i], u[1, i], u[2, i]
-        for r in range(6):
-            total = c[r]
-            for k in range(9):
-                total += G[r, k] * x[k]
-            out[i, r] = total
+        for k in range(3):
+            q = particles[i, k]
+            v = particles[i, 3 + k]
+            if noisy:
+                q += jitter[k, i]
+                v += jitter[3 + k, i]
+            a = u[k, i]
+            out[i, k] = q + tau * v - half * a + c[k]
+            out[i, 3 + k] = v - tau * a + c[3 + k]
 
 
 @njit(cache=True, fastmath=CONTRACT)
