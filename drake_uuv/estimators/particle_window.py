@@ -273,6 +273,9 @@ class LateRangeSteps:
         B, count = self.batch_size, self._parameters.count
         D = self._window.schedule.window
         moving = np.asarray(runs, dtype=bool).reshape(B)
+        if not moving.any():
+            discrete_state.set_value(self._live_index, np.zeros(B))
+            return
         drawn = np.asarray(drawn, dtype=bool).reshape(B) & moving
         seeds = np.asarray(self._seed_port.Eval(context), dtype=float)
         out = discrete_state.get_mutable_value(self._particles_index).reshape(B, count, STATE_SIZE)

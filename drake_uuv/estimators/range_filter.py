@@ -321,7 +321,10 @@ class RangeFilter(RelativeStateEstimator):
                 self.write_prediction(discrete_state, outcome.x, outcome.P, runs=gaussian)
         if to_particles.any():
             self._advance_particles(context, filtered, discrete_state, phases, redraw, to_particles)
-        elif self.window is not None and self._cloud is not None:  # no cloud is live now
+        elif (
+            self.window is not None and self._cloud is not None and self._cloud.live(context).any()
+        ):
+            # No run keeps particles: none of the clouds is live from now on.
             self._cloud.advance_window(
                 context, discrete_state, to_particles, to_particles, None, None
             )
