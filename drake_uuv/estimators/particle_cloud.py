@@ -197,6 +197,7 @@ class ParticleCloud(LateRangeSteps):
             self._weights = np.empty((2, n))  # the prior's and the posterior's
             self._ranges_work = np.empty((n, 2))
             self._no_jitter = np.zeros((0, n))
+            self._no_ancestors = np.zeros(0, dtype=np.int64)
             self._no_offset = np.zeros(STATE_SIZE)
         # The posterior, shared by the filtered output and the periodic update: (x, P, nis,
         # log weights, weights, and with late ranges each run's first step's (log weights,

@@ -25,7 +25,13 @@ from threadpoolctl import ThreadpoolController
 from drake_uuv.estimators.ping_window import StepBatch
 from drake_uuv.estimators.timed_step import instant_ranges, instants
 from drake_uuv.models.particle_filter import STATE_SIZE, defensive_draw, resample_regularised
-from drake_uuv.models.particle_window_kernels import moments, move_into, prior_mean, weigh
+from drake_uuv.models.particle_window_kernels import (
+    moments,
+    move_into,
+    move_resampled_into,
+    prior_mean,
+    weigh,
+)
 from drake_uuv.models.timing import transition
 from drake_uuv.primitives.batch import per_run
 
@@ -122,16 +128,6 @@ class LateRangeSteps:
             context, samples.reshape(B, 2, -1), per_run(np.asarray(status), B)
         )
         return steps
-
-    def _move(
-        self, particles: np.ndarray, u: np.ndarray, G: np.ndarray, c: np.ndarray, out: np.ndarray
-    ) -> np.ndarray:
-        """``G [xᵢ; uᵢ] + c`` of every particle (6×N columns: its state at the next tick), in
-        ``out``."""
-        moved = np.matmul(G[:, :STATE_SIZE], particles, out=out)
-        moved += np.matmul(G[:, STATE_SIZE:], u, out=self._work[3])
-        moved += c[:, np.newaxis]
-        return moved
 
     def _step(
         self,
@@ -369,14 +365,15 @@ class LateRangeSteps:
             particles, log_weights, chosen = resample_regularised(
                 particles, weighed, rng, self._parameters, work=work
             )
-            u_first = u[0]
-            if chosen is not None:  # each particle's path follows it
-                u_first = np.take(u_first, chosen, axis=1, out=work[1][:3], mode="clip")
-            if jitter is not None:  # and its draw of the navigation's noise
-                particles = particles + (jitter[0] if chosen is None else jitter[0][:, chosen])
+            # Each particle's path follows its ancestor: its acceleration and its draw of
+            # the navigation's noise.
             a = np.zeros(3) if host.error_model.navigated_motion else acceleration
-            G, B = transition(host.time_step)
-            self._move(particles, u_first, G, B @ a, out)
+            _, B = transition(host.time_step)
+            move_resampled_into(
+                particles, self._no_ancestors if chosen is None else chosen,
+                self._no_jitter if jitter is None else jitter[0], u[0],
+                float(host.time_step), B @ a, out.T,
+            )  # fmt: skip
         _shift_window(u, chosen, u_next)
         np.matmul(self._W_factor, rng.standard_normal(out=work[3][:3]), out=u_next[-1])
         if jitter is not None:

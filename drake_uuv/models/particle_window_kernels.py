@@ -59,6 +59,36 @@ def move_into(
 
 
 @njit(cache=True, fastmath=CONTRACT)
+def move_resampled_into(
+    particles: np.ndarray,
+    chosen: np.ndarray,
+    jitter: np.ndarray,
+    u: np.ndarray,
+    tau: float,
+    c: np.ndarray,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """The periodic update's move: :func:`move_into` of the resampled ``particles`` (6×N
+    columns), each with its ancestor's (``chosen``, N; empty: itself) navigation noise
+    (``jitter``, 6×N, or 0×N) and acceleration (``u``, 3×N), into ``out`` (N×6)."""
+    n = particles.shape[1]
+    picked = chosen.shape[0] == n
+    noisy = jitter.shape[0] == 6
+    half = 0.5 * tau * tau
+    for i in range(n):
+        j = chosen[i] if picked else i
+        for k in range(3):
+            q = particles[k, i]
+            v = particles[3 + k, i]
+            if noisy:
+                q += jitter[k, j]
+                v += jitter[3 + k, j]
+            a = u[k, j]
+            out[i, k] = q + tau * v - half * a + c[k]
+            out[i, 3 + k] = v - tau * a + c[3 + k]
+
+
+@njit(cache=True, fastmath=CONTRACT)
 def prior_mean(
     particles: np.ndarray,
     offset: np.ndarray,
