@@ -51,9 +51,11 @@ What the cloud reads of its host: ``model`` (A, B, W), ``window``, ``error_model
 ``write_prediction``; each value with a leading run axis, or one run's value, which a batch of
 one reads as such (:meth:`ParticleCloud._measurement`).
 
-Late ranges (the host's ping window) are stepped by numpy on one run's cloud
-(:class:`~drake_uuv.estimators.particle_window.LateRangeSteps`): a cloud with a window takes
-``batch_size`` 1 only.
+Late ranges (the host's ping window) are stepped by numpy on each live run's cloud in turn
+(:class:`~drake_uuv.estimators.particle_window.LateRangeSteps`): the posterior is
+``(x, P, nis, log_weights, None, first)`` of the window and this tick's ranges, and the
+host's periodic update calls :meth:`~LateRangeSteps.advance_window` ``(context,
+discrete_state, runs, drawn, draw_x, draw_P)`` in place of :meth:`ParticleCloud.advance`.
 """
 
 import math
@@ -177,25 +179,28 @@ class ParticleCloud(LateRangeSteps):
             host, "particle_seed", 1, RandomDistribution.kUniform, batch_size=B
         )
         self._window = host.window
-        if self._window is not None and B != 1:
-            raise ValueError(
-                f"batch_size: a particle cloud with late ranges steps one run, got {B}"
-            )
         if self._window is not None:  # each particle's target acceleration over each step
             D = self._window.schedule.window
-            self._accelerations_index = host.DeclareDiscreteState(np.zeros(D * 3 * n))
+            self._accelerations_index = host.DeclareDiscreteState(np.zeros(B * D * 3 * n))
         # With modelled navigation errors, each particle's own draw of what they add over each
         # window step (D×6×N): replayed as the window's steps are, like the accelerations.
         self._jitter_index = None
         if self._window is not None and host.error_model.active:
             D = self._window.schedule.window
-            self._jitter_index = host.DeclareDiscreteState(np.zeros(D * 6 * n))
+            self._jitter_index = host.DeclareDiscreteState(np.zeros(B * D * 6 * n))
         if self._window is not None:
-            # The late-range steps' work arrays (0-3) and the particles of the window's
-            # steps (4 and 5 in turn).
-            self._work = Workspace(n, arrays=6)
+            # The late-range steps' work arrays: numpy's for the periodic update (6×N), the
+            # kernels' (particle-major) for the window's steps.
+            self._work = Workspace(n, arrays=4)
+            self._steps = np.empty((2, n, STATE_SIZE))  # the window steps' particles in turn
+            self._moved = np.empty((n, STATE_SIZE))  # at an instant's ping time
+            self._weights = np.empty((2, n))  # the prior's and the posterior's
+            self._ranges_work = np.empty((n, 2))
+            self._no_jitter = np.zeros((0, n))
+            self._no_ancestors = np.zeros(0, dtype=np.int64)
+            self._no_offset = np.zeros(STATE_SIZE)
         # The posterior, shared by the filtered output and the periodic update: (x, P, nis,
-        # log weights, weights, and with late ranges the first step's (log weights,
+        # log weights, weights, and with late ranges each run's first step's (log weights,
         # acceleration) once the window is full, else None).
         self._posterior = host.DeclareCacheEntry(
             "particle posterior",
@@ -288,8 +293,7 @@ class ParticleCloud(LateRangeSteps):
 
     def _calc_posterior(self, context: Context, value: AbstractValue) -> None:
         if self._window is not None:
-            x, P, nis, log_weights, first = self._window_posterior(context)
-            value.set_value((x[None], P[None], np.array([nis]), log_weights[None], None, first))
+            value.set_value(self._window_posterior(context))
             return
         m = self._measurement(context)
         # Written in place: the cache entry owns its arrays (B·N each, allocated once per

@@ -1,12 +1,17 @@
-"""The particle cloud's steps with late ranges (the host's ping window), for one run.
+"""The particle cloud's steps with late ranges (the host's ping window), for a batch of runs.
 
-A base of :class:`~drake_uuv.estimators.particle_cloud.ParticleCloud`: with late ranges the
-cloud at the window's anchor is stepped through the window's steps, each range weighed at its
-ping time along each particle's path, by numpy on the run's cloud (6×N views of the state),
-with a ``numpy.random.Generator`` seeded by the run's uniform of the step. Each particle keeps
-its target acceleration (and with modelled navigation errors its draw of their noise) over
-each window step, replayed as the window's steps are. A cloud with a window takes
-``batch_size`` 1.
+A base of :class:`~drake_uuv.estimators.particle_cloud.ParticleCloud`: with late ranges each
+run's cloud at the window's anchor is stepped through the window's steps, each range weighed
+at its ping time along each particle's path, by numpy on the run's cloud (6×N views of its
+state), with a ``numpy.random.Generator`` seeded by the run's uniform of the step. Each
+particle keeps its target acceleration (and with modelled navigation errors its draw of their
+noise) over each window step, replayed as the window's steps are.
+
+The runs of a batch are stepped one after the other, each by numpy over its own 5000-20 000
+particles (a Python loop over runs: its cost is a few microseconds a run against
+milliseconds of work), and only the runs whose cloud is live (the posterior) or moving (the
+periodic update) do any work. A run's numbers depend on its own state, inputs and uniform
+alone; a run whose numbers fail (a factor or a solve of NaN) gets NaN and the others go on.
 """
 
 import functools
@@ -17,17 +22,18 @@ import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues
 from threadpoolctl import ThreadpoolController
 
+from drake_uuv.estimators.ping_window import StepBatch
 from drake_uuv.estimators.timed_step import instant_ranges, instants
-from drake_uuv.models.particle_filter import (
-    STATE_SIZE,
-    defensive_draw,
-    normalised,
-    range_terms,
-    resample_regularised,
+from drake_uuv.models.particle_filter import STATE_SIZE, defensive_draw, resample_regularised
+from drake_uuv.models.particle_window_kernels import (
+    moments,
+    move_into,
+    move_resampled_into,
+    prior_mean,
     weigh,
-    weighted_moments,
 )
 from drake_uuv.models.timing import transition
+from drake_uuv.primitives.batch import per_run
 
 # The uniform draw of the random port becomes a generator seed with this many bits (a double
 # in [0, 1) carries 53).
@@ -74,27 +80,28 @@ def _on_one_blas_thread(method: Callable) -> Callable:
 class LateRangeSteps:
     """The late-range steps of :class:`~drake_uuv.estimators.particle_cloud.ParticleCloud`
     (which declares the state they read: the particles, log weights, the window's per-particle
-    accelerations and navigation noise, and the work arrays)."""
+    accelerations and navigation noise, and the work arrays), each run's in turn."""
 
     def accelerations(self, context: Context) -> np.ndarray:
-        """Each particle's target acceleration over each window step (D×3×N)."""
+        """Each run's particles' target acceleration over each window step (B×D×3×N)."""
         D = self._window.schedule.window
         value = context.get_discrete_state(self._accelerations_index).get_value()
-        return value.reshape(D, 3, self._parameters.count)
+        return value.reshape(self.batch_size, D, 3, self._parameters.count)
 
     def jitter(self, context: Context) -> np.ndarray | None:
-        """Each particle's draw of the navigation's process noise over each window step
-        (D×6×N; None without modelled navigation errors or late ranges)."""
+        """Each run's particles' draw of the navigation's process noise over each window step
+        (B×D×6×N; None without modelled navigation errors or late ranges)."""
         if self._jitter_index is None:
             return None
         D = self._window.schedule.window
         value = context.get_discrete_state(self._jitter_index).get_value()
-        return value.reshape(D, 6, self._parameters.count)
+        return value.reshape(self.batch_size, D, 6, self._parameters.count)
 
-    def _jitter_root(self, context: Context) -> np.ndarray | None:
-        """A root of ``Q_nav``, what the modelled navigation errors add over the step from this
-        tick (the Gaussian filters add it to their Q); None when they add nothing."""
-        Q = self._host.navigation_process_noise(context)
+    @staticmethod
+    def _jitter_root(Q: np.ndarray | None) -> np.ndarray | None:
+        """A root of one run's ``Q_nav``, what the modelled navigation errors add over the
+        step from this tick (the Gaussian filters add it to their Q); None when they add
+        nothing."""
         if Q is None:
             return None
         # Q_nav has rank 3 (an acceleration's, or the position's walk): a symmetric root.
@@ -112,22 +119,15 @@ class LateRangeSteps:
             return out
         return np.matmul(root, rng.standard_normal((6, self._parameters.count)), out=out)
 
-    def _window_steps(self, context: Context):
+    def _window_steps(self, context: Context) -> list[StepBatch]:
         host = self._host
         samples = host.GetInputPort("range_samples").Eval(context)
         status = host.GetInputPort("sonar_status").Eval(context)
-        steps, _ = self._window.steps(context, samples.reshape(2, -1), status)
+        B = self.batch_size
+        steps, _ = self._window.steps(
+            context, samples.reshape(B, 2, -1), per_run(np.asarray(status), B)
+        )
         return steps
-
-    def _move(
-        self, particles: np.ndarray, u: np.ndarray, G: np.ndarray, c: np.ndarray, out: np.ndarray
-    ) -> np.ndarray:
-        """``G [xᵢ; uᵢ] + c`` of every particle (its state at a ping or the next tick), in
-        ``out``."""
-        moved = np.matmul(G[:, :STATE_SIZE], particles, out=out)
-        moved += np.matmul(G[:, STATE_SIZE:], u, out=self._work[3])
-        moved += c[:, np.newaxis]
-        return moved
 
     def _step(
         self,
@@ -136,133 +136,250 @@ class LateRangeSteps:
         u: np.ndarray,
         step,
         out: np.ndarray,
-        jitter: np.ndarray | None = None,
+        jitter: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, list[float]]:
-        """The stored-frame particles at a step's tick (plus their ``jitter``, the navigation's
-        process noise), reweighted by its arrived ranges at their ping times along each
-        particle's path, and moved to the next tick (in ``out``)."""
+        """One run's stored-frame particles (N×6) at a step's tick (plus their ``jitter``
+        (6×N, or 0×N), the navigation's process noise), reweighted by its arrived ranges at
+        their ping times along each particle's path (accelerations ``u``, 3×N), and moved to
+        the next tick (in ``out``)."""
         host = self._host
-        if jitter is not None:
-            particles = particles + jitter
         t = host.time_step
-        a = np.zeros(3) if host.error_model.navigated_motion else step.acceleration
+        navigated = host.error_model.navigated_motion
+        a = np.zeros(3) if navigated else step.acceleration
+        moved, mean = self._moved, np.empty(STATE_SIZE)
+        prior, posterior = self._weights
         new_nis = []
         for instant in instants(step, paired=False):
-            G, B = transition(instant.tau)
-            moved = self._move(particles, u, G, B @ a, self._work[2])
-            if host.error_model.navigated_motion:
-                moved += step.vehicle(instant.tau, t)[:, np.newaxis]
+            _, B = transition(instant.tau)
+            c = B @ a
+            if navigated:
+                c = c + step.vehicle(instant.tau, t)
+            move_into(particles, jitter, u, float(instant.tau), c, moved)
             q_s = step.attitude(instant.tau, t) @ host.baseline
             ranges = instant_ranges(host, instant, q_s, step)
-            prior = normalised(log_weights)  # for the error model's mean and the weighing
-            R = self._R if ranges.exact else ranges.covariance(self._R, moved @ prior)
-            terms = range_terms(moved, ranges.z, q_s, R, ranges.sonars, self._work)
-            nis, log_weights = weigh(log_weights, *terms, self._work, prior)
+            # The prior's mean, for the error model's noise there.
+            prior_mean(moved, self._no_offset, log_weights, prior, mean)
+            R = self._R if ranges.exact else ranges.covariance(self._R, mean)
+            weighed = np.empty(log_weights.shape)
+            nis = weigh(
+                moved, self._no_offset, log_weights, prior, ranges.z, ranges.valid, q_s, R,
+                self._ranges_work, weighed, posterior,
+            )  # fmt: skip
+            log_weights = weighed
             if np.any(step.new[instant.sonars]):
                 new_nis.append(nis)
-        G, B = transition(t)
-        return self._move(particles, u, G, B @ a, out), log_weights, new_nis
+        _, B = transition(t)
+        move_into(particles, jitter, u, float(t), B @ a, out)
+        return out, log_weights, new_nis
 
     def _window_posterior(self, context: Context) -> tuple:
-        """``(x, P, nis, log_weights, first)`` at this tick from the anchor's cloud
-        stepped through the window, then this tick's ranges; ``first`` the first step's log
-        weights and acceleration when its ranges have all arrived (the periodic update
-        resamples with them)."""
+        """``(x, P, nis, log_weights, None, first)`` at this tick ((B, 6), (B, 6, 6), (B),
+        (B, N), relative frame): each live run's cloud at the anchor stepped through the
+        window, then this tick's ranges (NaN rows for the others); ``first`` (B) each run's
+        first step's log weights and acceleration when its ranges have all arrived (the
+        periodic update resamples with them), else None."""
         host = self._host
-        work = self._work
+        B, n = self.batch_size, self._parameters.count
+        x, P = np.full((B, 6), np.nan), np.full((B, 6, 6), np.nan)
+        nis, log_weights = np.full(B, np.nan), np.full((B, n), np.nan)
+        first: list = [None] * B
+        live = self.live(context)
+        if live.any():
+            steps = self._window_steps(context)
+            offset = host.vehicle_motion.offset(context)
+            ranges = host.ranges(context)
+            particles = self._stored_runs(context)
+            prior = self._log_weights_runs(context)
+            u = self.accelerations(context)
+            jitter = self.jitter(context)
+            for r in np.flatnonzero(live):
+                with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                    try:
+                        nis[r], log_weights[r], first[r] = self._run_posterior(
+                            context, [step.run(r) for step in steps], particles[r], prior[r],
+                            u[r], None if jitter is None else jitter[r], offset[r],
+                            ranges.run(r), x[r], P[r],
+                        )  # fmt: skip
+                    except np.linalg.LinAlgError:  # a failed run: NaN, the others go on
+                        x[r], P[r], first[r] = np.nan, np.nan, None
+        return x, P, nis, log_weights, None, first
+
+    def _run_posterior(
+        self,
+        context: Context,
+        steps: list,
+        particles: np.ndarray,
+        log_weights: np.ndarray,
+        u: np.ndarray,
+        jitter: np.ndarray | None,
+        offset: np.ndarray,
+        ranges,
+        x: np.ndarray,
+        P: np.ndarray,
+    ) -> tuple:
+        """One run's ``(nis, log_weights, first)`` (see :meth:`_window_posterior`), its
+        posterior's mean and covariance in ``x`` and ``P``. ``particles`` N×6 (stored
+        frame), ``u`` D×3×N, ``jitter`` D×6×N or None."""
         j = self._window.tick(context)
         D = self._window.schedule.window
-        particles = self._stored_runs(context)[0].T
-        log_weights = self._log_weights_runs(context)[0]
-        u = self.accelerations(context)
-        jitter = self.jitter(context)
         nis_total, first = [], None
-        for i, step in enumerate(self._window_steps(context)):
+        for i, step in enumerate(steps):
             slot = step.step - (j - D)
             particles, log_weights, new_nis = self._step(
-                particles, log_weights, u[slot], step, work[4 + i % 2],
-                None if jitter is None else jitter[slot],
+                particles, log_weights, u[slot], step, self._steps[i % 2],
+                self._no_jitter if jitter is None else jitter[slot],
             )  # fmt: skip
             nis_total += new_nis
             if first is None and j >= D:
                 first = (log_weights, step.acceleration)
-        offset = host.vehicle_motion.offset(context)
-        relative = np.add(particles, offset[:, np.newaxis], out=work[2])
-        ranges = host.ranges(context)  # this tick's own pings (no latency, at the tick)
-        if ranges.valid.any():
-            prior = normalised(log_weights)
-            R = self._R if ranges.exact else ranges.covariance(self._R, relative @ prior)
-            terms = range_terms(relative, ranges.z, ranges.q_s, R, ranges.sonars, work)
-            nis, log_weights = weigh(log_weights, *terms, work, prior)
+        prior, posterior = self._weights
+        if ranges.valid.any():  # this tick's own pings (no latency, at the tick)
+            mean = np.empty(STATE_SIZE)
+            prior_mean(particles, offset, log_weights, prior, mean)
+            R = self._R if ranges.exact else ranges.covariance(self._R, mean)
+            weighed = np.empty(log_weights.shape)
+            nis = weigh(
+                particles, offset, log_weights, prior, ranges.z, ranges.valid, ranges.q_s, R,
+                self._ranges_work, weighed, posterior,
+            )  # fmt: skip
+            log_weights = weighed
             nis_total.append(nis)
-        x, P = weighted_moments(relative, normalised(log_weights), work)
+        moments(particles, offset, log_weights, posterior, x, P)
         nis = float(sum(nis_total)) if nis_total else math.nan
-        return x, P, nis, log_weights, first
+        return nis, log_weights, first
 
     @_on_one_blas_thread
     def advance_window(
         self,
         context: Context,
         discrete_state: DiscreteValues,
-        draw: tuple[np.ndarray, np.ndarray] | None = None,
+        runs: np.ndarray,
+        drawn: np.ndarray,
+        draw_x: np.ndarray,
+        draw_P: np.ndarray,
     ) -> None:
-        """The periodic update with late ranges: the anchor's cloud moved one step on (its
-        oldest step's ranges weighed, resampled and regularised, moved by each particle's
-        own acceleration) or drawn from ``N(draw)`` (stored frame, at the new anchor); a new
-        acceleration per particle for the window's newest step."""
+        """The periodic update with late ranges of the runs in ``runs`` (B): each one's
+        anchor's cloud moved one step on (its oldest step's ranges weighed, resampled and
+        regularised, moved by each particle's own acceleration), or, for the runs of
+        ``drawn`` (B), drawn from ``N(draw_x, draw_P)`` ((B, 6), (B, 6, 6), stored frame, at
+        the new anchor); a new acceleration per particle for the window's newest step. The
+        moving runs' clouds become live, the others not (their particles kept); the moving
+        runs' predictions are written."""
         host = self._host
-        work = self._work
-        u_seed = float(self._seed_port.Eval(context)[0])
-        rng = np.random.default_rng(int(u_seed * 2.0**_SEED_BITS))
-        count = self._parameters.count
+        B, count = self.batch_size, self._parameters.count
         D = self._window.schedule.window
-        L = self._W_factor
-        out = discrete_state.get_mutable_value(self._particles_index).reshape(count, STATE_SIZE).T
-        u_next = discrete_state.get_mutable_value(self._accelerations_index).reshape(D, 3, count)
-        jitter_next = root = None
+        moving = np.asarray(runs, dtype=bool).reshape(B)
+        if not moving.any():
+            discrete_state.set_value(self._live_index, np.zeros(B))
+            return
+        drawn = np.asarray(drawn, dtype=bool).reshape(B) & moving
+        seeds = np.asarray(self._seed_port.Eval(context), dtype=float)
+        out = discrete_state.get_mutable_value(self._particles_index).reshape(B, count, STATE_SIZE)
+        u_next = discrete_state.get_mutable_value(self._accelerations_index).reshape(B, D, 3, count)
+        out_log_weights = discrete_state.get_mutable_value(self._log_weights_index).reshape(
+            B, count
+        )
+        jitter_next = Q = None
         if self._jitter_index is not None:
-            jitter_next = discrete_state.get_mutable_value(self._jitter_index).reshape(D, 6, count)
-            root = self._jitter_root(context)
-        if draw is not None:
-            particles, log_weights = defensive_draw(
-                draw[0], draw[1], count, rng, _HANDOVER_WIDENING
+            jitter_next = discrete_state.get_mutable_value(self._jitter_index).reshape(
+                B, D, 6, count
             )
-            out[...] = particles
-            for k in range(D):
-                np.matmul(L, rng.standard_normal((3, count)), out=u_next[k])
-                if jitter_next is not None:
-                    self._draw_jitter(root, rng, jitter_next[k])
-        else:
-            particles = self._stored_runs(context)[0].T
-            log_weights = self._log_weights_runs(context)[0]
+            Q = host.navigation_process_noise(context)
+        moved = moving & ~drawn
+        if moved.any():
+            particles = self._stored_runs(context)
+            log_weights = self._log_weights_runs(context)
             u = self.accelerations(context)
             jitter = self.jitter(context)
             first = self._posterior.Eval(context)[5]
-            chosen = None
-            if first is None:
-                out[...] = particles
-            else:  # the oldest step's ranges have all arrived: the posterior weighed them
-                weighed, acceleration = first
-                particles, log_weights, chosen = resample_regularised(
-                    particles, weighed, rng, self._parameters, work=work
-                )
-                u_first = u[0]
-                if chosen is not None:  # each particle's path follows it
-                    u_first = np.take(u_first, chosen, axis=1, out=work[1][:3], mode="clip")
-                if jitter is not None:  # and its draw of the navigation's noise
-                    particles = particles + (jitter[0] if chosen is None else jitter[0][:, chosen])
-                a = np.zeros(3) if host.error_model.navigated_motion else acceleration
-                G, B = transition(host.time_step)
-                self._move(particles, u_first, G, B @ a, out)
-            _shift_window(u, chosen, u_next)
-            np.matmul(L, rng.standard_normal(out=work[3][:3]), out=u_next[-1])
-            if jitter is not None:
-                _shift_window(jitter, chosen, jitter_next)
-                self._draw_jitter(root, rng, jitter_next[-1])
-        x, P = weighted_moments(out, normalised(log_weights), work)
-        host.write_prediction(discrete_state, x, P)
-        discrete_state.set_value(self._log_weights_index, log_weights)
-        discrete_state.set_value(self._live_index, np.ones(1))
+        x, P = np.full((B, 6), np.nan), np.full((B, 6, 6), np.nan)
+        for r in np.flatnonzero(moving):
+            rng = np.random.default_rng(int(seeds[r] * 2.0**_SEED_BITS))
+            root = None
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                try:
+                    if Q is not None:
+                        root = self._jitter_root(Q[r])
+                    if drawn[r]:
+                        weights = self._draw_run(
+                            draw_x[r], draw_P[r], rng, root, out[r].T, u_next[r],
+                            None if jitter_next is None else jitter_next[r],
+                        )  # fmt: skip
+                    else:
+                        weights = self._move_run(
+                            particles[r].T, log_weights[r], u[r],
+                            None if jitter is None else jitter[r], first[r], rng, root,
+                            out[r].T, u_next[r], None if jitter_next is None else jitter_next[r],
+                        )  # fmt: skip
+                    out_log_weights[r] = weights
+                    moments(out[r], self._no_offset, weights, self._weights[0], x[r], P[r])
+                except np.linalg.LinAlgError:  # a failed run: NaN, the others go on
+                    out[r] = np.nan
+                    out_log_weights[r] = np.nan
+        host.write_prediction(discrete_state, x, P, runs=moving)
+        discrete_state.set_value(self._live_index, moving.astype(float))
+
+    def _draw_run(
+        self,
+        x: np.ndarray,
+        P: np.ndarray,
+        rng: np.random.Generator,
+        root: np.ndarray | None,
+        out: np.ndarray,
+        u_next: np.ndarray,
+        jitter_next: np.ndarray | None,
+    ) -> np.ndarray:
+        """One run's cloud drawn from ``N(x, P)`` into ``out`` (6×N) with each window step's
+        accelerations and navigation noise; returns its log weights."""
+        count = self._parameters.count
+        particles, log_weights = defensive_draw(x, P, count, rng, _HANDOVER_WIDENING)
+        out[...] = particles
+        for k in range(self._window.schedule.window):
+            np.matmul(self._W_factor, rng.standard_normal((3, count)), out=u_next[k])
+            if jitter_next is not None:
+                self._draw_jitter(root, rng, jitter_next[k])
+        return log_weights
+
+    def _move_run(
+        self,
+        particles: np.ndarray,
+        log_weights: np.ndarray,
+        u: np.ndarray,
+        jitter: np.ndarray | None,
+        first: tuple | None,
+        rng: np.random.Generator,
+        root: np.ndarray | None,
+        out: np.ndarray,
+        u_next: np.ndarray,
+        jitter_next: np.ndarray | None,
+    ) -> np.ndarray:
+        """One run's anchor cloud (6×N) moved one step on into ``out``, its window's slots
+        shifted into ``u_next`` and ``jitter_next`` with a new newest step; returns its log
+        weights."""
+        host, work = self._host, self._work
+        chosen = None
+        if first is None:
+            out[...] = particles
+        else:  # the oldest step's ranges have all arrived: the posterior weighed them
+            weighed, acceleration = first
+            particles, log_weights, chosen = resample_regularised(
+                particles, weighed, rng, self._parameters, work=work
+            )
+            # Each particle's path follows its ancestor: its acceleration and its draw of
+            # the navigation's noise.
+            a = np.zeros(3) if host.error_model.navigated_motion else acceleration
+            _, B = transition(host.time_step)
+            move_resampled_into(
+                particles, self._no_ancestors if chosen is None else chosen,
+                self._no_jitter if jitter is None else jitter[0], u[0],
+                float(host.time_step), B @ a, out.T,
+            )  # fmt: skip
+        _shift_window(u, chosen, u_next)
+        np.matmul(self._W_factor, rng.standard_normal(out=work[3][:3]), out=u_next[-1])
+        if jitter is not None:
+            _shift_window(jitter, chosen, jitter_next)
+            self._draw_jitter(root, rng, jitter_next[-1])
+        return log_weights
 
 
 def _shift_window(slots: np.ndarray, chosen: np.ndarray | None, out: np.ndarray) -> None:

@@ -21,8 +21,6 @@ their config dataclass names (``range_update()``, ``handover_policy()``,
 ``particle_parameters()``).
 """
 
-import math
-
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues
 
@@ -36,7 +34,6 @@ from drake_uuv.estimators.contract import (
 )
 from drake_uuv.estimators.linear_start import LinearStart
 from drake_uuv.estimators.particle_cloud import ParticleCloud
-from drake_uuv.estimators.run_of_one import RunOfOne
 from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
 from drake_uuv.models.filter_runs import range_difference_update_runs
 from drake_uuv.models.handover import HandoverPolicy, Phase, PhaseEvidence
@@ -64,8 +61,8 @@ class RangeFilter(RelativeStateEstimator):
     of :class:`~drake_uuv.estimators.base.RelativeStateEstimator`.
 
     With ``batch_size`` B each run has its own phase: the phases are per-run masks of one
-    computation, never a branch for the batch. (The particle cloud, and late ranges, step
-    one run for now: a filter that may carry particles takes B = 1.)
+    computation, never a branch for the batch (with late ranges too: the particle cloud steps
+    the runs in its phase, each through its own window).
 
     Discrete state (per run, B runs row-major): the base's groups 0 and 1 (with particles,
     the predicted cloud's mean and covariance); ``[phase, linear updates applied]``; the
@@ -143,14 +140,7 @@ class RangeFilter(RelativeStateEstimator):
         self.DeclareStateOutputPort("estimator_phase", self._phase_index)
         self._cloud = None
         if not self._gaussian or self._policy.particle_bridge:
-            if B != 1 and self.window is not None:
-                raise ValueError(
-                    "batch_size: a filter that may carry particles with late ranges steps one "
-                    f"run at a time for now, got {B}"
-                )
-            # Late ranges: the cloud steps one run through the window's single-run view.
-            host = self if self.window is None else RunOfOne(self)
-            self._cloud = self.cloud_type(host, config.particle_parameters(), self._R, batch_size=B)
+            self._cloud = self.cloud_type(self, config.particle_parameters(), self._R, batch_size=B)
         self._dof_linear = np.ones(B, dtype=np.intp)
         self._divergence = config.divergence_test()
         if self._divergence is not None:
@@ -243,13 +233,25 @@ class RangeFilter(RelativeStateEstimator):
         return self.phases(context) == _LINEAR
 
     def filtered_estimate(self, context: Context) -> FilteredEstimate | None:
-        """With late ranges in the particle phase, the cloud's own: stepped through the
-        window's ranges at their ping times, then this tick's (one run)."""
-        if self.window is None or self.phase(context) is not Phase.PARTICLE:
+        """With late ranges, each run in the particle phase takes the cloud's own: stepped
+        through the window's ranges at their ping times, then this tick's; the other runs
+        the base's (None when no run is in the particle phase)."""
+        if self.window is None:
             return None
-        x, P, nis, _ = self._cloud.posterior(context)  # a batch of one
-        status = VALID if math.isfinite(nis[0]) else self.arrival_status(context)[0]
-        return FilteredEstimate(x, P, np.array([float(status)]), nis)
+        particle = self.phases(context) == _PARTICLE
+        if not particle.any():
+            return None
+        x, P, nis, _ = self._cloud.posterior(context)
+        status = np.where(np.isfinite(nis), float(VALID), self.arrival_status(context))
+        if particle.all():
+            return FilteredEstimate(x, P, status, nis)
+        base = self._filtered_by_update(context)
+        return FilteredEstimate(
+            np.where(particle[:, np.newaxis], x, base.x),
+            np.where(particle[:, np.newaxis, np.newaxis], P, base.P),
+            np.where(particle, status, base.status),
+            np.where(particle, nis, base.nis),
+        )
 
     def step_belief(self, context: Context, x: np.ndarray, P: np.ndarray, step) -> StepOutcome:
         """In the particle phase the particles take the ranges: the Gaussian summary only
@@ -305,13 +307,27 @@ class RangeFilter(RelativeStateEstimator):
         state[:, 1] = done
         discrete_state.set_value(self._phase_index, state.ravel())
         to_particles = following == _PARTICLE
-        timed = self.window is not None
-        # The Gaussian prediction of every run (the cloud writes its runs' over it); with late
-        # ranges a run leaving its particles keeps the anchor the cloud wrote.
-        if not to_particles.all() and not (timed and phases[0] == _PARTICLE):
-            super().advance(context, filtered, discrete_state)
+        if self.window is None:
+            # The Gaussian prediction of every run (the cloud writes its runs' over it).
+            if not to_particles.all():
+                super().advance(context, filtered, discrete_state)
+        else:
+            # The anchor moved on by the Gaussian steps, of the runs that were not on
+            # particles and do not go to them: a run leaving its particles keeps the anchor
+            # the cloud wrote.
+            gaussian = ~to_particles & (phases != _PARTICLE)
+            outcome = self.anchor_advance(context) if gaussian.any() else None
+            if outcome is not None:
+                self.write_prediction(discrete_state, outcome.x, outcome.P, runs=gaussian)
         if to_particles.any():
             self._advance_particles(context, filtered, discrete_state, phases, redraw, to_particles)
+        elif (
+            self.window is not None and self._cloud is not None and self._cloud.live(context).any()
+        ):
+            # No run keeps particles: none of the clouds is live from now on.
+            self._cloud.advance_window(
+                context, discrete_state, to_particles, to_particles, None, None
+            )
 
     def _diverged(
         self,
@@ -402,12 +418,10 @@ class RangeFilter(RelativeStateEstimator):
     ) -> None:
         """The cloud's step of the runs in ``runs`` (B): those in ``drawn`` (B) draw anew from
         ``N(draw_x, draw_P)`` ((B, 6), (B, 6, 6)), weighed by the step's ranges where
-        ``weigh`` (B); the others move their particles on. The cloud steps one run for now:
-        this maps run 0 onto its calls (a batched cloud takes these arrays as they are)."""
+        ``weigh`` (B); the others move their particles on (with late ranges through their
+        window: a draw is weighed by the window's ranges as the cloud steps)."""
         if self.window is not None:
-            if runs[0]:
-                draw = (draw_x[0], draw_P[0]) if drawn[0] else None
-                self._cloud.advance_window(context, discrete_state, draw)
+            self._cloud.advance_window(context, discrete_state, runs, drawn, draw_x, draw_P)
             return
         self._cloud.advance(
             context, filtered, discrete_state, (draw_x, draw_P), weigh, drawn=drawn, runs=runs

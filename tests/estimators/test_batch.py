@@ -16,7 +16,7 @@ from drake_uuv.models.measurement import (
     range_measurement,
 )
 from drake_uuv.models.timing import PingSchedule
-from drake_uuv.scenario import Ekf, Iekf, NavigationErrors, PaperKf, Ukf
+from drake_uuv.scenario import Ekf, Iekf, NavigationErrors, PaperKf, ParticleFilter, Ukf
 from drake_uuv.testing import assert_batch_equals_runs, fixed_context
 from tests.conftest import ETA_UNEQUAL, T, W
 
@@ -28,8 +28,9 @@ ERRORS = NavigationErrors(
     velocity_noise=0.01, velocity_bias=0.005,
 )  # fmt: skip
 KINDS = {"kf": PaperKf, "ekf": Ekf, "iekf": Iekf, "ukf": Ukf}
-# The raw-range filters without particles (the cloud steps one run for now).
+# The raw-range filters without particles (the particle clouds are tested on their own).
 NO_PARTICLES = dict(particle_bridge=False)
+COUNT = 40  # particles of a run's cloud in the tests of late ranges
 
 
 def setting(errors: bool) -> EstimatorSetting:
@@ -150,9 +151,9 @@ def test_the_batch_mixes_phases_gates_and_drops() -> None:
     assert set(status.tolist()) & {float(DROPPED), float(OUT_OF_BEAM)}
 
 
-def test_batch_size_is_checked_and_particles_with_late_ranges_take_one_run() -> None:
-    """A filter that may carry particles steps a batch with the paper's timing; with late
-    ranges its cloud still steps one run (the window's particle path is not batched)."""
+def test_batch_size_is_checked_and_particles_step_batches_with_late_ranges_too() -> None:
+    """A filter that may carry particles steps a batch, with the paper's timing and with late
+    ranges (each run's cloud through its own ping window)."""
     with pytest.raises(ValueError, match=r"^batch_size: must be an integer ≥ 1, got 0"):
         maker("kf")(0)
     assert RangeFilter(Ekf(), setting=setting(False), batch_size=2).batch_size == 2
@@ -160,10 +161,7 @@ def test_batch_size_is_checked_and_particles_with_late_ranges_take_one_run() -> 
         time_step=T, acceleration_covariance=W, noise_variances=ETA_UNEQUAL,
         samples_per_step=F, baseline_B=B_BODY, ping_schedule=SCHEDULE,
     )  # fmt: skip
-    with pytest.raises(
-        ValueError, match=r"^batch_size: a filter that may carry particles with late"
-    ):
-        RangeFilter(Ekf(), setting=timed, batch_size=2)
+    assert RangeFilter(Ekf(), setting=timed, batch_size=2).cloud.batch_size == 2
 
 
 SCHEDULE = PingSchedule(T, (0.1, 0.3), 0.6)  # both ranges two ticks late: D = 2
@@ -234,3 +232,108 @@ def test_with_late_ranges_errors_navigation_and_a_failed_run(kind: str) -> None:
     states[0][1] = np.nan  # run 1 failed
     states[1][1] = np.nan
     assert_batch_equals_runs(make, inputs, states, time=7 * T)
+
+
+def random_cloud_runs(make, B: int, seed: int, tick: int, *, errors: bool = False, nan_run=None):
+    """Random runs with late ranges (:func:`random_timed_runs`) whose phases mix the particle
+    phase (a live cloud at the window's anchor with its window's accelerations, and with
+    navigation errors their noise) with the linear start and, for a filter with a Gaussian
+    update, the Gaussian phase; and each run's uniform of the step."""
+    rng = np.random.default_rng(100 + seed)
+    inputs, states = random_timed_runs(make, B, seed, tick, navigated=errors)
+    system = make(1)
+    D = SCHEDULE.window
+    choices = [Phase.LINEAR, Phase.PARTICLE, Phase.PARTICLE]
+    if system.policy.particle_bridge:
+        choices.append(Phase.RANGE)
+    phases = rng.choice(choices, size=B).astype(float)
+    phases[0] = float(Phase.PARTICLE)  # each batch holds a cloud
+    states[-1][:, 0] = phases
+    particles = X_TRUE + 0.3 * rng.standard_normal((B, COUNT, 6))
+    log_weights = -0.5 * rng.random((B, COUNT)) ** 2
+    live = (phases == Phase.PARTICLE).astype(float)[:, np.newaxis]
+    accelerations = 0.1 * rng.standard_normal((B, D * 3 * COUNT))
+    states += [particles.reshape(B, -1), log_weights, live, accelerations]
+    if errors:
+        states.append(0.01 * rng.standard_normal((B, D * 6 * COUNT)))
+    if nan_run is not None:
+        states[-5 if errors else -4][nan_run] = np.nan
+    assert len(states) == system.num_discrete_state_groups()
+    inputs["particle_seed"] = rng.random((B, 1))
+    return inputs, states
+
+
+@pytest.mark.parametrize("kind", ["pf", "ekf"])
+@pytest.mark.parametrize("B", [1, 2, 5])
+def test_with_late_ranges_a_batch_of_clouds_is_each_run_alone(kind: str, B: int) -> None:
+    """Each run's cloud stepped through its own window (filtered estimate and periodic
+    update: moved on, resampled, drawn anew for a run entering the particles) is the run
+    alone, bit for bit, with runs of every phase in the batch; before the window is full
+    (tick 1) and after (tick 6)."""
+    make = cloud_maker(kind)
+    for seed in (0, 2):
+        for tick in (1, 6):
+            inputs, states = random_cloud_runs(make, B, seed, tick)
+            assert_batch_equals_runs(make, inputs, states, time=tick * T)
+
+
+def test_with_late_ranges_errors_and_navigation_a_batch_of_clouds_is_each_run_alone() -> None:
+    make = cloud_maker("pf", errors=True, vehicle_motion="navigation")
+    inputs, states = random_cloud_runs(make, 4, 3, 6, errors=True)
+    assert_batch_equals_runs(make, inputs, states, time=6 * T)
+
+
+def test_with_late_ranges_a_failed_cloud_leaves_the_others_alone() -> None:
+    """Run 1's particles are NaN: nothing raises, its estimate is NaN, and the other runs'
+    bits are theirs alone."""
+    make = cloud_maker("pf")
+    inputs, states = random_cloud_runs(make, 4, 4, 6, nan_run=1)
+    states[-5][:, 0] = float(Phase.PARTICLE)  # every run on particles, live
+    states[-2][:, 0] = 1.0
+    assert_batch_equals_runs(make, inputs, states, time=6 * T)
+    system = make(4)
+    context = fixed_context(system, **{k: v.ravel() for k, v in inputs.items()})
+    for group, value in enumerate(states):
+        context.SetDiscreteState(group, value.ravel())
+    x = system.GetOutputPort("x_TU_hat").Eval(context).reshape(4, 6)
+    assert np.isnan(x[1]).all() and np.isfinite(x[[0, 2, 3]]).all()
+    system.EvalUniquePeriodicDiscreteUpdate(context)
+
+
+def test_the_batch_of_clouds_mixes_draws_moves_and_hand_backs() -> None:
+    """The EKF's random batch above (seed 2, tick 6) holds what it is meant to: a run that
+    stays on its particles, runs that hand back to the Gaussian, a run that enters the
+    particles (its cloud drawn at the new anchor), a linear start and a gated update."""
+    make = cloud_maker("ekf")
+    inputs, states = random_cloud_runs(make, 5, 2, 6)
+    system = make(5)
+    context = fixed_context(system, **{k: v.ravel() for k, v in inputs.items()})
+    context.SetTime(6 * T)
+    for group, value in enumerate(states):
+        context.SetDiscreteState(group, value.ravel())
+    after = system.CreateDefaultContext()
+    after.SetDiscreteState(system.EvalUniquePeriodicDiscreteUpdate(context))
+    L, R, P = Phase.LINEAR, Phase.RANGE, Phase.PARTICLE
+    assert system.phases(context).tolist() == [P, L, P, P, L]
+    assert system.phases(after).tolist() == [R, L, P, R, P]
+    assert system.cloud.live(after).tolist() == [False, False, True, False, True]
+    assert system.GetOutputPort("measurement_status").Eval(context).tolist() == [
+        VALID, 4.0, VALID, VALID, VALID,
+    ]  # fmt: skip
+
+
+def cloud_maker(kind: str, errors: bool = False, **fields):
+    """A filter that carries particles with late ranges: the particle filter, or the EKF with
+    its particle bridge."""
+    config = {"pf": ParticleFilter, "ekf": Ekf}[kind]
+    config = config(gate_probability=0.99, particle_count=COUNT, **fields)
+    extra = dict(navigation_errors=ERRORS, sound_speed_error=0.004) if errors else {}
+    timed = EstimatorSetting(
+        time_step=T, acceleration_covariance=W, noise_variances=ETA_UNEQUAL,
+        samples_per_step=F, baseline_B=B_BODY, ping_schedule=SCHEDULE, **extra,
+    )  # fmt: skip
+
+    def make(batch_size: int):
+        return RangeFilter(config, setting=timed, batch_size=batch_size)
+
+    return make

@@ -35,7 +35,7 @@ class LinearProbe(RelativeStateEstimator):
     """A throwaway estimator: sonar i measures ``cᵢᵀ q`` with variance ηᵢ."""
 
     def measurement_update(self, context, prior: Estimate, ranges: Ranges):
-        # One run (late ranges step one run at a time): its batch of one, row 0.
+        # The probe steps one run: its batch of one, row 0.
         rows = ranges.run(0).sonars
         if rows.size == 0:
             return None
