@@ -25,6 +25,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from drake_uuv.diagnostics import batch_warnings
+from drake_uuv.estimators.factory import make_estimator
 from drake_uuv.estimators.particle_cloud import bytes_per_run as cloud_bytes_per_run
 from drake_uuv.metrics import errors, metric_signals, run_information
 from drake_uuv.scenario import Scenario, scenario_as_dict
@@ -211,12 +212,20 @@ def _summary(
 
 def _state_bytes_per_run(scenario: Scenario) -> int:
     """What a run's systems hold beyond the log: a particle cloud's state and weights
-    (:func:`~drake_uuv.estimators.particle_cloud.bytes_per_run`) for an estimator that may
-    carry particles (the particle filter, or the bridge of the Gaussian raw-range filters);
-    nothing worth counting otherwise."""
+    (:func:`~drake_uuv.estimators.particle_cloud.bytes_per_run`, with late ranges each window
+    step's draws) for an estimator that may carry particles (the particle filter, or the
+    bridge of the Gaussian raw-range filters); nothing worth counting otherwise."""
     if not isinstance(scenario.estimator, RawRangeOptions):
         return 0
-    return cloud_bytes_per_run(scenario.estimator.particle_count)
+    estimator = make_estimator(scenario)  # one run: what its cloud declares
+    if getattr(estimator, "cloud", None) is None:
+        return 0
+    window = estimator.window  # late ranges: each window step's draws per particle too
+    return cloud_bytes_per_run(
+        scenario.estimator.particle_count,
+        0 if window is None else window.schedule.window,
+        navigation_noise=window is not None and estimator.error_model.active,
+    )
 
 
 def canonical_metric_names(lists: Sequence[list[str]]) -> list[str]:

@@ -144,3 +144,11 @@ def test_a_batch_holds_its_log_and_its_particles_within_the_budget():
     assert max_batch_size(pf) < max_batch_size(kf)
     assert max_batch_size(pf) * bytes_per_run(20000) <= BATCH_LOG_BYTES
     assert (max_batch_size(pf) + 1) * bytes_per_run(20000) > 0.5 * BATCH_LOG_BYTES
+    # With late ranges the cloud also keeps each window step's draws: the realistic filter's
+    # window is 1 step (a ping 0.25 s late and 0.2 s of latency arrive by the next tick),
+    # with navigation noise.
+    realistic = load_scenario("realistic")
+    late = bytes_per_run(20000, 1, navigation_noise=True)
+    assert late > 2 * bytes_per_run(20000)
+    assert max_batch_size(realistic) * late <= BATCH_LOG_BYTES
+    assert (max_batch_size(realistic) + 1) * late > 0.5 * BATCH_LOG_BYTES
