@@ -320,7 +320,7 @@ def _effective_rows(Pr, L, Pxz, S, m, H, Reff, col, tmp, sol):
 
 
 @njit(cache=True, error_model="numpy")
-def _ukf(x, P, z, q_s, R, use, mask, root, Wm0, Wi, Wc0, x_out, P_out, nis_out):
+def _ukf(x, P, z, q_s, R, use, mask, root, Wm0, Wi, Wc0, scale, x_out, P_out, nis_out):
     rows = np.empty(2, np.int64)
     Rm, S, Sinv = np.empty((2, 2)), np.empty((2, 2)), np.empty((2, 2))
     L = np.empty((6, 6))
@@ -346,6 +346,11 @@ def _ukf(x, P, z, q_s, R, use, mask, root, Wm0, Wi, Wc0, x_out, P_out, nis_out):
         _sigma_points(xr, L, root, pts)
         _point_ranges(pts, q_s, r, rows, m, Z)
         _unscented_moments(Z, pts, xr, z, r, rows, m, Rm, Wm0, Wi, Wc0, z_hat, nu, S, Pxz)
+        if scale != 1.0:  # S += (scale − 1) Ω, Ω = R_eff − R the linearisation error's
+            _effective_rows(Pr, L, Pxz, S, m, H, Reff, col, tmp, sol)
+            for a in range(m):
+                for b in range(m):
+                    S[a, b] += (scale - 1.0) * (Reff[a, b] - Rm[a, b])
         _inverse_small(S, m, Sinv)
         for i in range(6):
             for a in range(m):
@@ -421,15 +426,19 @@ def ukf_update_runs(
     spread: float,
     alpha: float,
     beta: float,
+    correlation_steps: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`~drake_uuv.models.unscented.ukf_range_update` of each run in ``mask``
     (arguments as :func:`ekf_update_runs`'s; ``spread = n + λ``, ``alpha``, ``beta`` of the
-    sigma points)."""
+    sigma points, ``correlation_steps`` the factor of the linearisation error's variance)."""
     out = _outputs(x, P)
     Wi = 0.5 / spread
     Wm0 = (spread - 6.0) / spread
     Wc0 = Wm0 + 1.0 - alpha * alpha + beta
-    _ukf(x, P, z, q_s, R.reshape(-1, 2, 2), use, mask, np.sqrt(spread), Wm0, Wi, Wc0, *out)
+    _ukf(
+        x, P, z, q_s, R.reshape(-1, 2, 2), use, mask, np.sqrt(spread), Wm0, Wi, Wc0,
+        float(correlation_steps), *out,
+    )  # fmt: skip
     return out
 
 
@@ -454,10 +463,10 @@ def range_update_runs(update: Callable) -> RangeUpdateRuns:
         return functools.partial(ekf_update_runs, **keywords) if keywords else ekf_update_runs
     if function is iekf_update and set(keywords) <= {"max_iterations", "tolerance", "max_halvings"}:
         return functools.partial(iekf_update_runs, **keywords)
-    if function is ukf_range_update and set(keywords) <= {"parameters"}:
+    if function is ukf_range_update and set(keywords) <= {"parameters", "correlation_steps"}:
         parameters = keywords.get("parameters", DEFAULT_PARAMETERS)
         return functools.partial(
             ukf_update_runs, spread=parameters.spread(6), alpha=parameters.alpha,
-            beta=parameters.beta,
+            beta=parameters.beta, correlation_steps=keywords.get("correlation_steps", 1.0),
         )  # fmt: skip
     raise ValueError(f"range_update: no batched counterpart of {update!r}")

@@ -114,12 +114,18 @@ def unscented_update(
     R: np.ndarray,
     h: Callable[[np.ndarray], np.ndarray],
     parameters: SigmaPointParameters = DEFAULT_PARAMETERS,
+    correlation_steps: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """One unscented Kalman measurement update for ``z = h(x) + v``, ``v ~ N(0, R)``.
 
     ``h`` maps sigma points (rows of an ``(m, n)`` array) to predicted measurements
     (``(m, p)``). Returns ``(x, P, nis)``; the covariance in the Joseph form of the module
     docstring.
+
+    ``correlation_steps`` multiplies the linearisation error's variance ``Ω = S − R − H P Hᵀ``
+    (what the statistically linearised ``H`` leaves of the predicted measurement's spread):
+    the error is a function of the estimate's, which persists over the updates a filter
+    averages, so it counts that many updates' worth (1: the UKF's own, as if independent).
     """
     x_pred = np.asarray(x_pred, dtype=float)
     P_pred = np.asarray(P_pred, dtype=float)
@@ -132,10 +138,13 @@ def unscented_update(
     dX = points - x_pred  # the weighted mean of the points is x_pred exactly
     S = (Wc[:, None] * dZ).T @ dZ + R
     P_xz = (Wc[:, None] * dX).T @ dZ
+    H = np.linalg.solve(P_pred, P_xz).T  # statistical linearisation: P_xzᵀ P⁻¹
+    if correlation_steps != 1.0:
+        omega = S - R - H @ P_pred @ H.T
+        S = S + (correlation_steps - 1.0) * 0.5 * (omega + omega.T)
     K = np.linalg.solve(S, P_xz.T).T  # P_xz S⁻¹ (S symmetric)
     nu = z - z_hat
     x = x_pred + K @ nu
-    H = np.linalg.solve(P_pred, P_xz).T  # statistical linearisation: P_xzᵀ P⁻¹
     R_eff = S - H @ P_pred @ H.T
     R_eff = 0.5 * (R_eff + R_eff.T)
     I_KH = np.eye(x.size) - K @ H
@@ -159,8 +168,10 @@ def ukf_range_update(
     R: np.ndarray,
     sonars: tuple[int, ...] | np.ndarray = (0, 1),
     parameters: SigmaPointParameters = DEFAULT_PARAMETERS,
+    correlation_steps: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """UKF update on the raw ranges: the unscented counterpart of ``ekf_update``.
+    """UKF update on the raw ranges: the unscented counterpart of ``ekf_update``
+    (``correlation_steps`` as :func:`unscented_update`'s).
 
     ``z`` are the per-sonar sample means, ``R = diag(η1/f, η2/f)`` their covariance, ``q_s``
     the world baseline; ``sonars`` selects the ranges used (``(0,)`` or ``(1,)`` when only one
@@ -173,8 +184,9 @@ def ukf_range_update(
     z = np.asarray(z, dtype=float).reshape(2)[rows]
     R = np.asarray(R, dtype=float)[np.ix_(rows, rows)]
     return unscented_update(
-        x_pred, P_pred, z, R, lambda X: range_model_points(X, q_s, rows), parameters
-    )
+        x_pred, P_pred, z, R, lambda X: range_model_points(X, q_s, rows), parameters,
+        correlation_steps,
+    )  # fmt: skip
 
 
 def unscented_range_update(parameters: SigmaPointParameters = DEFAULT_PARAMETERS) -> RangeUpdate:

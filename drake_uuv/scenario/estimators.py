@@ -278,7 +278,7 @@ class Ekf(LinearizedRangeOptions):
     first-order EKF. The first-order EKF's innovations are unbiased, its estimate is not (it
     sits on the range shell, the truth's mean inside it by ``tr(P⊥)/(2d)``).
 
-    ``second_order_correlation`` multiplies the variance term: the quadratic term is a function
+    ``linearisation_correlation`` multiplies the variance term: the quadratic term is a function
     of the estimate's error, which persists from update to update, so over the updates a
     filter averages it does not average out as an independent noise would. The default, 7
     steps, is the error's integrated autocorrelation time (null direction 8.1 steps, line of
@@ -297,13 +297,13 @@ class Ekf(LinearizedRangeOptions):
     second_order: str = "full"
     # The second-order term's variance counts this many updates' worth at each (see above;
     # 1: Gelb's, independent from update to update; unused without the variance term).
-    second_order_correlation: float = 7.0
+    linearisation_correlation: float = 7.0
 
     def validate(self, name: str) -> None:
         super().validate(name)
         check_choice(f"{name}.second_order", self.second_order, SECOND_ORDER_TERMS)
         check_between(
-            f"{name}.second_order_correlation", self.second_order_correlation, 1.0, 1000.0
+            f"{name}.linearisation_correlation", self.linearisation_correlation, 1.0, 1000.0
         )
 
     def range_update(self) -> RangeUpdate:
@@ -312,7 +312,7 @@ class Ekf(LinearizedRangeOptions):
         return functools.partial(
             ekf_update,
             second_order=self.second_order,
-            correlation_steps=self.second_order_correlation,
+            correlation_steps=self.linearisation_correlation,
         )
 
 
@@ -327,10 +327,28 @@ class Iekf(LinearizedRangeOptions):
 @dataclass
 class Ukf(GaussianRangeOptions):
     """Unscented Kalman filter on both raw ranges. The scaled unscented transform with α = 1,
-    β = 2, κ = 3 − n: sigma points at ±√3 σ, every weight positive."""
+    β = 2, κ = 3 − n: sigma points at ±√3 σ, every weight positive.
+
+    ``linearisation_correlation`` multiplies the linearisation error's variance (what the
+    sigma points' statistical linearisation leaves of the ranges' spread), for the reason the
+    EKF's does (see :class:`Ekf`). Its sigma points at ±√3 σ see the expansion's higher orders
+    too, so it needs less than the EKF's 7: mean NEES over 200 runs (band [5.53, 6.49]) at
+    1 → 4 (default) → 7: LQR world-frame law 6.83 → 5.81 → 5.54, paper 6.07 → 5.82 → 5.65,
+    ``far_standoff`` 6.54 → 5.65 → 5.44, ``noisy_sonar`` 6.28 → 6.09 → 5.99; position RMSE
+    within 2 % of 1's throughout."""
+
+    linearisation_correlation: float = 4.0
+
+    def validate(self, name: str) -> None:
+        super().validate(name)
+        check_between(
+            f"{name}.linearisation_correlation", self.linearisation_correlation, 1.0, 1000.0
+        )
 
     def range_update(self) -> RangeUpdate:
-        return ukf_range_update
+        if self.linearisation_correlation == 1.0:
+            return ukf_range_update
+        return functools.partial(ukf_range_update, correlation_steps=self.linearisation_correlation)
 
 
 @dataclass

@@ -263,9 +263,9 @@ def test_the_correlation_multiplies_the_second_order_variance_and_nothing_else()
 @pytest.mark.parametrize("value", [0.5, -3.0, 2000.0])
 def test_a_correlation_outside_1_to_1000_steps_is_refused_naming_it(value: float) -> None:
     with pytest.raises(
-        ScenarioError, match=r"^estimator.second_order_correlation: must be in \[1, 1000\], got"
+        ScenarioError, match=r"^estimator.linearisation_correlation: must be in \[1, 1000\], got"
     ):
-        load_scenario("paper", ["estimator=Ekf", f"estimator.second_order_correlation={value}"])
+        load_scenario("paper", ["estimator=Ekf", f"estimator.linearisation_correlation={value}"])
 
 
 LQR_WORLD = [
@@ -276,19 +276,76 @@ LQR_WORLD = [
 
 
 @pytest.mark.slow
-def test_the_default_ekf_is_consistent_under_the_lqr_world_law_and_the_textbook_one_is_not():
+@pytest.mark.parametrize(
+    ("default", "textbook"),
+    [("!Ekf {}", "!Ekf {second_order: none}"), ("!Ukf {}", "!Ukf {linearisation_correlation: 1}")],
+)
+def test_the_default_filter_is_consistent_under_the_lqr_world_law_and_the_textbook_one_is_not(
+    default: str, textbook: str
+) -> None:
     """100 runs (seeds 0-99) under the LQR world-frame law: the mean NEES over runs and
-    steady-state steps of the default EKF lies in the 95 % band of a consistent filter's mean
-    over 100 runs at one step, χ²(600)/100 (a time average varies less, so the band is
-    conservative); the first-order EKF's lies above it."""
+    steady-state steps of the default EKF and UKF lies in the 95 % band of a consistent
+    filter's mean over 100 runs at one step, χ²(600)/100 (a time average varies less, so the
+    band is conservative); the textbook filter's lies above it."""
     from drake_uuv.models.statistics import nees_band
 
     low, high = nees_band(6, 100)
     means = {}
-    for order in ("full", "none"):
-        scenario = load_scenario("paper", [*LQR_WORLD, f"estimator=!Ekf {{second_order: {order}}}"])
+    for name, estimator in (("default", default), ("textbook", textbook)):
+        scenario = load_scenario("paper", [*LQR_WORLD, f"estimator={estimator}"])
         result = ClosedLoopSimulation(scenario, batch_size=100).run_batch(list(range(100)))
         assert not result.failures or not any(result.failures)
-        means[order] = float(np.mean(result.metrics["nees_mean"]))
-    assert low <= means["full"] <= high, means
-    assert means["none"] > high, means
+        means[name] = float(np.mean(result.metrics["nees_mean"]))
+    assert low <= means["default"] <= high, means
+    assert means["textbook"] > high, means
+
+
+def test_the_ukf_s_correlation_multiplies_its_linearisation_error() -> None:
+    """``correlation_steps = c``: the innovation covariance is ``S + (c − 1) Ω`` with
+    ``Ω = S − R − H P Hᵀ`` of the plain update, ``H = P_xzᵀ P⁻¹``; the batch is the plain one."""
+    from drake_uuv.models.raw_range_runs import ukf_update_runs
+    from drake_uuv.models.unscented import DEFAULT_PARAMETERS, ukf_range_update
+
+    x = np.array([-2.0, -2.2, 0.5, 0.1, 0.0, -0.1])
+    P = np.diag([0.09, 0.04, 0.06, 0.01, 0.01, 0.01])
+    z = np.array([3.1, 2.9])
+    R = np.diag([0.01, 0.01])
+    plain = ukf_range_update(x, P, z, Q_S, R)
+    scaled = ukf_range_update(x, P, z, Q_S, R, correlation_steps=4.0)
+    # From the NIS of a scalar update the innovation variance is read directly: use one sonar.
+    one = ukf_range_update(x, P, z, Q_S, R, sonars=(0,))
+    one_scaled = ukf_range_update(x, P, z, Q_S, R, sonars=(0,), correlation_steps=4.0)
+    d = np.linalg.norm(x[:3] + 0.5 * Q_S)
+    # Ω of sonar 0 from the sigma points by hand (the UKF's α = 1, β = 2, κ = −3 on 6 states)
+    L = np.linalg.cholesky(3.0 * P)
+    points = [x] + [x + L[:, i] for i in range(6)] + [x - L[:, i] for i in range(6)]
+    Z = np.array([np.linalg.norm(p[:3] + 0.5 * Q_S) for p in points])
+    Wm = np.array([-1.0] + [1.0 / 6.0] * 12)
+    Wc = Wm + np.array([2.0] + [0.0] * 12)
+    z_hat = Wm @ Z
+    Pzz = Wc @ (Z - z_hat) ** 2
+    Pxz = (Wc[:, None] * (np.array(points) - x)).T @ (Z - z_hat)
+    H = np.linalg.solve(P, Pxz)
+    omega = Pzz - H @ P @ H
+    nu2 = (z[0] - z_hat) ** 2
+    assert one[2] == pytest.approx(nu2 / (Pzz + R[0, 0]), rel=1e-10)
+    assert one_scaled[2] == pytest.approx(nu2 / (Pzz + R[0, 0] + 3.0 * omega), rel=1e-10)
+    assert omega > 0 and d > 0
+    assert not np.allclose(plain[1], scaled[1])
+    rng = np.random.default_rng(2)
+    B = 4
+    xs = x + 0.1 * rng.normal(size=(B, 6))
+    use = np.array([[1, 1], [1, 0], [0, 1], [1, 1]], dtype=bool)
+    mask = np.ones(B, dtype=bool)
+    p = DEFAULT_PARAMETERS
+    got = ukf_update_runs(
+        xs, np.broadcast_to(P, (B, 6, 6)).copy(), np.broadcast_to(z, (B, 2)).copy(),
+        np.broadcast_to(Q_S, (B, 3)).copy(), R, use, mask, p.spread(6), p.alpha, p.beta,
+        correlation_steps=4.0,
+    )  # fmt: skip
+    for r in range(B):
+        want = ukf_range_update(
+            xs[r], P, z, Q_S, R, sonars=np.flatnonzero(use[r]), correlation_steps=4.0
+        )
+        for a, b in zip((g[r] for g in got), want, strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)

@@ -23,8 +23,7 @@ from drake_uuv.models.particle_filter import (
     pf_update,
     weighted_moments,
 )
-from drake_uuv.models.unscented import ukf_range_update
-from drake_uuv.scenario import ParticleFilter
+from drake_uuv.scenario import ParticleFilter, Ukf
 from drake_uuv.testing import after_update
 from tests.conftest import ETA_UNEQUAL, X0, T, W
 from tests.estimators.cloud_host import reference_step
@@ -47,6 +46,8 @@ from tests.estimators.range_filters import (
 )
 
 PARAMS = ParticleFilterParameters(count=COUNT)
+# The UKF's update as configured by default.
+ukf_range_update = Ukf().range_update()
 #: The filters under the rule without the bridge, and with it.
 PLAIN = {"ekf": dict(NO_BRIDGE), "ukf": dict(NO_BRIDGE), "pf": {}}
 

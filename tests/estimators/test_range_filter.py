@@ -26,7 +26,7 @@ from drake_uuv.models.unscented import (
     ukf_range_update,
     unscented_range_update,
 )
-from drake_uuv.scenario import Ekf, ScenarioError, load_scenario
+from drake_uuv.scenario import Ekf, ScenarioError, Ukf, load_scenario
 from drake_uuv.testing import after_update
 from tests.conftest import ETA_UNEQUAL, X0, T, W
 from tests.estimators.range_filters import (
@@ -47,9 +47,11 @@ from tests.estimators.range_filters import (
     samples,
 )
 
-# The EKF's update as configured by default (second-order terms on).
+# The EKF's and the UKF's updates as configured by default (the EKF's second-order terms,
+# both filters' linearisation error over its correlation time).
 EKF_UPDATE = Ekf().range_update()
-UPDATES = {"ekf": EKF_UPDATE, "iekf": iekf_update, "ukf": ukf_range_update}
+UKF_UPDATE = Ukf().range_update()
+UPDATES = {"ekf": EKF_UPDATE, "iekf": iekf_update, "ukf": UKF_UPDATE}
 
 
 @pytest.mark.parametrize("kind", ["ekf", "iekf", "ukf", "pf"])
