@@ -3,9 +3,10 @@
 A run's cost is set by its configuration (:func:`configuration`): the plant, estimator and
 attitude variants, the particle count and the number of steps (a particle filter or the
 hovering UUV costs ten to a hundred times the paper's kinematic loop with its KF; the rest of
-a variant's settings costs little). :func:`estimate_wall_time` times a short batch of each
-distinct configuration among the runs still to compute, as a study runs it
-(:func:`~drake_uuv.studies.runner.run_seeds`, its diagram built), and scales:
+a variant's settings costs little). :func:`estimate_wall_time` times two short batches of each
+distinct configuration among the runs still to compute, as a study runs them
+(:func:`~drake_uuv.studies.runner.run_seeds`, its diagram built; :func:`time_one_run`), and
+scales:
 the wall time is Σ over configurations of (one run's seconds × its runs), divided by the
 workers (at most one per run). It ignores what parallel workers lose to each other (about 13 %
 on two cores, ``benchmarks/bench_montecarlo.py``) and the spread of run times across seeds.
@@ -44,17 +45,34 @@ SAMPLE_RUNS, SAMPLE_STEPS = 32, 40
 
 
 def time_one_run(scenario: Scenario) -> float:
-    """Wall seconds a run of ``scenario`` takes in a study: a batch of up to
-    :data:`SAMPLE_RUNS` runs of at most :data:`SAMPLE_STEPS` steps timed as a study runs it
-    (diagram built, seeds from the first), per run and scaled to the scenario's steps."""
-    steps = min(scenario.steps, SAMPLE_STEPS)
-    sample = dataclasses.replace(
-        scenario, steps=steps, steady_state_start=min(scenario.steady_state_start, steps - 1)
-    )
-    runs = max(1, min(SAMPLE_RUNS, max_batch_size(sample)))
-    start = perf_counter()
-    run_seeds(sample, list(range(scenario.random_seed, scenario.random_seed + runs)))
-    return (perf_counter() - start) / runs * scenario.steps / steps
+    """Wall seconds a run of ``scenario`` takes in a study, from two batches of the same (up
+    to :data:`SAMPLE_RUNS`) runs timed as a study runs them (diagram built, seeds from the
+    first), :data:`SAMPLE_STEPS` and twice as many steps.
+
+    Their difference is the cost of the later steps alone: after the linear start's hand-over,
+    where a filter carries its particles (the first steps cost a particle filter a tenth of
+    the rest) and without the batch's fixed cost (its diagram, metrics, first kernel calls),
+    which a study pays once per batch of :func:`~drake_uuv.studies.runner.max_batch_size`
+    runs (a 40-step sample alone put the paper's KF at 110 ms a run, 50 times its cost in a
+    study, and the realistic 20 000-particle filter at a seventh of its)."""
+    short, long = min(scenario.steps, SAMPLE_STEPS), min(scenario.steps, 2 * SAMPLE_STEPS)
+    runs = max(1, min(SAMPLE_RUNS, max_batch_size(scenario)))
+    seeds = list(range(scenario.random_seed, scenario.random_seed + runs))
+
+    def timed(steps: int) -> float:
+        sample = dataclasses.replace(
+            scenario, steps=steps, steady_state_start=min(scenario.steady_state_start, steps - 1)
+        )
+        start = perf_counter()
+        run_seeds(sample, seeds)
+        return perf_counter() - start
+
+    first = timed(short)
+    if long == short:  # too short a scenario to sample twice: the whole of it
+        return first / runs
+    per_step = max(timed(long) - first, 0.0) / (long - short) / runs
+    fixed = max(first - per_step * short * runs, 0.0)  # per batch
+    return per_step * scenario.steps + fixed / max_batch_size(scenario)
 
 
 @dataclass(frozen=True)

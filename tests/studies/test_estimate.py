@@ -122,14 +122,29 @@ def test_durations(seconds, text):
     assert duration(seconds) == text
 
 
-def test_a_run_is_timed_in_a_short_batch_as_a_study_runs_it(monkeypatch):
-    """32 runs of 40 steps from the first seed, timed together: per run, scaled to the steps."""
-    clock = iter([10.0, 12.0])
+def test_a_run_is_timed_in_two_short_batches_as_a_study_runs_them(monkeypatch):
+    """32 runs of 40 and of 80 steps from the first seed: the difference is the later steps'
+    cost per step; what the first batch took beyond its steps is the batch's fixed cost, paid
+    once per batch of max_batch_size runs."""
+    from drake_uuv.studies.runner import max_batch_size
+
+    clock = iter([10.0, 12.0, 20.0, 23.2])
     calls = []
     monkeypatch.setattr(estimate_module, "perf_counter", lambda: next(clock))
     monkeypatch.setattr(
         estimate_module, "run_seeds", lambda scenario, s: calls.append((scenario.steps, s))
     )
-    scenario = load_scenario("paper", ["steps=80", "steady_state_start=40"], seed=42)
-    assert time_one_run(scenario) == pytest.approx(2.0 / 32 * 80 / 40)
-    assert calls == [(40, list(range(42, 74)))]
+    scenario = load_scenario("paper", ["steps=200", "steady_state_start=100"], seed=42)
+    per_step = (3.2 - 2.0) / 40 / 32
+    fixed = 2.0 - per_step * 40 * 32
+    want = per_step * 200 + fixed / max_batch_size(scenario)
+    assert time_one_run(scenario) == pytest.approx(want)
+    assert calls == [(40, list(range(42, 74))), (80, list(range(42, 74)))]
+
+
+def test_a_scenario_too_short_to_sample_twice_is_timed_whole(monkeypatch):
+    clock = iter([10.0, 12.0])
+    monkeypatch.setattr(estimate_module, "perf_counter", lambda: next(clock))
+    monkeypatch.setattr(estimate_module, "run_seeds", lambda scenario, s: None)
+    scenario = load_scenario("paper", ["steps=30", "steady_state_start=10"])
+    assert time_one_run(scenario) == pytest.approx(2.0 / 32)
