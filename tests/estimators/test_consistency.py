@@ -278,15 +278,19 @@ LQR_WORLD = [
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("default", "textbook"),
-    [("!Ekf {}", "!Ekf {second_order: none}"), ("!Ukf {}", "!Ukf {linearisation_correlation: 1}")],
+    [
+        ("!Ekf {second_order: full, linearisation_correlation: 7}", "!Ekf {}"),
+        ("!Ukf {linearisation_correlation: 4}", "!Ukf {}"),
+    ],
 )
-def test_the_default_filter_is_consistent_under_the_lqr_world_law_and_the_textbook_one_is_not(
+def test_the_correlated_linearisation_error_makes_a_filter_consistent_under_the_lqr_world_law(
     default: str, textbook: str
 ) -> None:
     """100 runs (seeds 0-99) under the LQR world-frame law: the mean NEES over runs and
-    steady-state steps of the default EKF and UKF lies in the 95 % band of a consistent
-    filter's mean over 100 runs at one step, χ²(600)/100 (a time average varies less, so the
-    band is conservative); the textbook filter's lies above it."""
+    steady-state steps of the EKF and UKF that count their linearisation error over its
+    correlation time lies in the 95 % band of a consistent filter's mean over 100 runs at one
+    step, χ²(600)/100 (a time average varies less, so the band is conservative); the
+    textbook filter's lies above it."""
     from drake_uuv.models.statistics import nees_band
 
     low, high = nees_band(6, 100)

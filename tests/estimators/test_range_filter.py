@@ -47,8 +47,7 @@ from tests.estimators.range_filters import (
     samples,
 )
 
-# The EKF's and the UKF's updates as configured by default (the EKF's second-order terms,
-# both filters' linearisation error over its correlation time).
+# The EKF's and the UKF's updates as configured by default.
 EKF_UPDATE = Ekf().range_update()
 UKF_UPDATE = Ukf().range_update()
 UPDATES = {"ekf": EKF_UPDATE, "iekf": iekf_update, "ukf": UKF_UPDATE}
