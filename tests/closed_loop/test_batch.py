@@ -98,6 +98,20 @@ def test_with_late_ranges_a_cloud_run_is_the_same_bits_alone_and_anywhere(config
                 )
 
 
+def spoiled_prior(simulation: ClosedLoopSimulation, run: int):
+    """A ``prepare`` for :meth:`ClosedLoopSimulation.run_batch` that makes run ``run``'s
+    prior (the estimator's first discrete state, 6 a run) NaN before the start."""
+    estimator = simulation.built.systems["estimator"]
+
+    def spoil(root) -> None:
+        context = estimator.GetMyMutableContextFromRoot(root)
+        x = context.get_discrete_state(0).get_value().copy()
+        x[6 * run : 6 * run + 6] = np.nan
+        context.SetDiscreteState(0, x)
+
+    return spoil
+
+
 @pytest.mark.slow
 def test_with_late_ranges_a_failing_cloud_run_leaves_the_others_untouched() -> None:
     """The particle filter with latency: run 1's prior is NaN before the start; nothing
@@ -105,15 +119,7 @@ def test_with_late_ranges_a_failing_cloud_run_leaves_the_others_untouched() -> N
     name, overrides, _ = LATE_PARTICLES["particle_filter"]
     scenario = load_scenario(name, [*SHORT, *overrides])
     simulation = ClosedLoopSimulation(scenario, batch_size=3)
-    estimator = simulation.built.systems["estimator"]
-
-    def spoil_run_1(root):
-        context = estimator.GetMyMutableContextFromRoot(root)
-        x = context.get_discrete_state(0).get_value().copy()
-        x[6:12] = np.nan
-        context.SetDiscreteState(0, x)
-
-    batch = simulation.run_batch([5, 6, 7], prepare=spoil_run_1)
+    batch = simulation.run_batch([5, 6, 7], prepare=spoiled_prior(simulation, run=1))
     assert batch.failures[0] is None and batch.failures[2] is None
     assert batch.failures[1].startswith("estimator output is not finite")
     alone = ClosedLoopSimulation(scenario)
@@ -129,15 +135,7 @@ def test_a_failing_run_is_marked_and_the_others_go_on_untouched() -> None:
     metrics are NaN, while runs 0 and 2 are bit for bit what they are alone."""
     scenario = load_scenario("paper", SHORT)
     simulation = ClosedLoopSimulation(scenario, batch_size=3)
-    estimator = simulation.built.systems["estimator"]
-
-    def spoil_run_1(root):
-        context = estimator.GetMyMutableContextFromRoot(root)
-        x = context.get_discrete_state(0).get_value().copy()
-        x[6:12] = np.nan
-        context.SetDiscreteState(0, x)
-
-    batch = simulation.run_batch([5, 6, 7], prepare=spoil_run_1)
+    batch = simulation.run_batch([5, 6, 7], prepare=spoiled_prior(simulation, run=1))
     assert batch.failures[0] is None and batch.failures[2] is None
     assert batch.failures[1].startswith("estimator output is not finite")
     assert batch.failures[1].endswith("at step k=0 (t=0 s)")
