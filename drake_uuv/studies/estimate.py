@@ -165,11 +165,13 @@ def format_estimate(estimate: WallTimeEstimate) -> str:
     )
     lines = [
         f"{head}: about {duration(estimate.seconds)} {where},",
-        "from a timed batch of each configuration (plant, estimator, particles, attitude, steps):",
+        "from two timed batches of each configuration "
+        "(plant, estimator, particles, attitude, steps):",
     ]
     for (plant, estimator, particles, attitude, steps), (seconds, runs) in sorted(
         estimate.costs.items(), key=lambda item: -item[1][0] * item[1][1]
     ):
         name = estimator + (f" {particles}" if particles else "")
-        lines.append(f"  {seconds:7.2f} s × {runs:>5}  {plant}, {name}, {attitude}, {steps} steps")
+        cost = f"{seconds:7.2f} s" if seconds >= 0.1 else f"{seconds * 1e3:6.2f} ms"
+        lines.append(f"  {cost} × {runs:>5}  {plant}, {name}, {attitude}, {steps} steps")
     return "\n".join(lines)

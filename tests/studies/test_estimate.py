@@ -93,7 +93,8 @@ def test_the_text_states_runs_time_and_what_was_measured():
     )
     assert format_estimate(estimate) == (
         "36 runs to compute (4 variants × 10 runs, 4 on disk already): about 25 s on 2 workers,\n"
-        "from a timed batch of each configuration (plant, estimator, particles, attitude, steps):\n"
+        "from two timed batches of each configuration (plant, estimator, particles, attitude, "
+        "steps):\n"
         "     4.00 s ×    10  KinematicUuv, ParticleFilter 20000, TrajectoryAttitude, 80 steps\n"
         "     0.50 s ×    16  KinematicUuv, PaperKf, TrajectoryAttitude, 80 steps\n"
         "     0.25 s ×    10  KinematicUuv, PaperKf, FixedAttitude, 80 steps"
