@@ -127,10 +127,16 @@ class RawRangeOptions(EstimatorOptions):
     particle_resample_threshold: float = 0.5
     # The regularisation kernel's bandwidth, times the Gaussian kernel's optimal one (0: none).
     particle_bandwidth_scale: float = 1.0
+    # A due hand-over waits while the tick's raw ranges contradict the Gaussian it would start
+    # from: their NIS under it beyond the χ² quantile of 1 − this (None: no such gate).
+    # far_standoff, seed 137: NIS 22 at the hand-over, then one particle kept its weight.
+    handover_range_gate: float | None = 1e-3
 
     def validate(self, name: str) -> None:
         super().validate(name)
         check_choice(f"{name}.handover", self.handover, HANDOVERS)
+        if self.handover_range_gate is not None:
+            check_probability(f"{name}.handover_range_gate", self.handover_range_gate)
         check_positive(f"{name}.handover_prior_share", self.handover_prior_share)
         if self.handover_angle is not None:
             check_positive(f"{name}.handover_angle", self.handover_angle)

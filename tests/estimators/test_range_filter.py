@@ -27,6 +27,7 @@ from drake_uuv.models.unscented import (
     unscented_range_update,
 )
 from drake_uuv.scenario import Ekf, ScenarioError, Ukf, load_scenario
+from drake_uuv.simulation import ClosedLoopSimulation
 from drake_uuv.testing import after_update
 from tests.conftest import ETA_UNEQUAL, X0, T, W
 from tests.estimators.range_filters import (
@@ -341,3 +342,49 @@ def test_bad_noise_values_name_the_field() -> None:
 
 def test_no_bridge_leaves_a_gaussian_filter_without_particles() -> None:
     assert make("ekf", **NO_BRIDGE).cloud is None
+
+
+@pytest.mark.parametrize(
+    ("kind", "offset", "gate", "after"),
+    [
+        ("ekf", 0.0, 1e-3, Phase.RANGE),  # ranges that agree: the hand-over goes ahead
+        ("ekf", 3.0, 1e-3, Phase.LINEAR),  # 3 m beyond the Gaussian's ranges: it waits
+        ("ekf", 3.0, None, Phase.RANGE),  # no gate: it goes ahead
+        ("pf", 3.0, 1e-3, Phase.LINEAR),
+        ("pf", 0.0, 1e-3, Phase.PARTICLE),
+    ],
+)
+def test_a_due_hand_over_waits_while_the_ranges_contradict_its_gaussian(
+    kind: str, offset: float, gate: float | None, after: Phase
+) -> None:
+    """One linear update, after which the hand-over is forced (``linear_start_max_steps:
+    1``): it happens unless the tick's raw ranges lie beyond the χ² quantile of 1 − gate
+    under the filtered Gaussian (the KF's covariance there is a few dm, the ranges' noise
+    centimetres: 3 m is far beyond, the true ranges well inside)."""
+    fields = dict(handover="threshold", linear_start_max_steps=1, handover_range_gate=gate)
+    system = make(kind, **fields)
+    context = context_of(system, range_samples=samples() + offset)
+    assert system.phase(context) is Phase.LINEAR
+    assert system.phase(after_update(system, context)) is after
+
+
+@pytest.mark.parametrize("value", [0.0, 1.0, -0.1])
+def test_a_hand_over_gate_outside_0_to_1_is_refused_naming_it(value: float) -> None:
+    with pytest.raises(
+        ScenarioError, match=r"^estimator.handover_range_gate: must be in \(0, 1\), got"
+    ):
+        load_scenario("paper", ["estimator=Ekf", f"estimator.handover_range_gate={value}"])
+
+
+@pytest.mark.slow
+def test_far_standoff_seed_137_is_kept_by_the_hand_over_gate() -> None:
+    """The seed the particle filter lost at 14 m: at its hand-over the ranges' NIS under the
+    linear start's Gaussian was 22; the cloud drawn from it kept one particle, and its
+    covariance lost its rank. With the gate the run ends within its bound's reach."""
+    kept = ClosedLoopSimulation(load_scenario("far_standoff")).run_batch([137])
+    assert kept.failures == [None]
+    assert kept.metrics["final_position_error"][0] < 10.0
+    lost = ClosedLoopSimulation(
+        load_scenario("far_standoff", ["estimator.handover_range_gate=null"])
+    ).run_batch([137])
+    assert lost.failures[0] is not None and "not positive definite" in lost.failures[0]
