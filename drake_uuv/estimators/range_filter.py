@@ -37,8 +37,8 @@ from drake_uuv.estimators.particle_cloud import ParticleCloud
 from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
 from drake_uuv.models.filter_runs import range_difference_update_runs
 from drake_uuv.models.handover import HandoverPolicy, Phase, PhaseEvidence
-from drake_uuv.models.measurement import MIN_RANGE, VALID
-from drake_uuv.models.raw_range_runs import range_update_runs
+from drake_uuv.models.measurement import VALID
+from drake_uuv.models.raw_range_runs import ekf_update_runs, range_update_runs
 from drake_uuv.models.statistics import chi2_ppf
 from drake_uuv.primitives.batch import per_run, tiled
 from drake_uuv.primitives.signal import Signal
@@ -304,7 +304,7 @@ class RangeFilter(RelativeStateEstimator):
         if self._range_gate is not None:
             leaving = (phases == _LINEAR) & (following != _LINEAR)
             if leaving.any():
-                wait = leaving & self._ranges_contradict(filtered, ranges)
+                wait = self._ranges_contradict(filtered, ranges, leaving)
                 following = np.where(wait, _LINEAR, following)
         redraw &= asked
         if self._divergence is not None:
@@ -342,25 +342,18 @@ class RangeFilter(RelativeStateEstimator):
                 context, discrete_state, to_particles, to_particles, None, None
             )
 
-    def _ranges_contradict(self, filtered: FilteredEstimate, ranges: Ranges) -> np.ndarray:
-        """Whether each run's arrived raw ranges of this tick lie beyond the hand-over gate
-        under its filtered Gaussian (B): ``νᵀ S⁻¹ ν`` with ``ν = z − d(x̂)``,
-        ``S = H P Hᵀ + R`` over the valid ranges, against the χ² quantile of their count. A
-        Gaussian the ranges contradict is a poor start for the ranges' own update: a cloud
-        drawn from it and weighed by them keeps a handful of particles."""
-        valid = ranges.valid
-        half = 0.5 * ranges.q_s[:, np.newaxis, :]
-        v = filtered.x[:, np.newaxis, :3] + np.array([[1.0], [-1.0]]) * half  # (B, 2, 3)
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            d = np.linalg.norm(v, axis=-1)
-            u = v / np.maximum(d, MIN_RANGE)[..., np.newaxis]
-            S = u @ filtered.P[:, :3, :3] @ np.swapaxes(u, -1, -2) + self._R
-            both = valid[:, :, np.newaxis] & valid[:, np.newaxis, :]
-            S = np.where(both, S, np.eye(2))  # an absent range: decoupled, no innovation
-            nu = np.where(valid, ranges.z - d, 0.0)
-            S = np.where(np.isfinite(S), S, np.eye(2))  # a failed run: no gate
-            nis = np.einsum("bi,bi->b", nu, np.linalg.solve(S, nu[..., np.newaxis])[..., 0])
-        return nis > self._range_gate[valid.sum(axis=1)]
+    def _ranges_contradict(
+        self, filtered: FilteredEstimate, ranges: Ranges, runs: np.ndarray
+    ) -> np.ndarray:
+        """Whether each of ``runs``' arrived raw ranges of this tick lie beyond the hand-over
+        gate under its filtered Gaussian (B): the NIS an EKF update there would have
+        (``ν = z − d(x̂)``, ``S = H P Hᵀ + R`` over the valid ranges) against the χ² quantile
+        of their count. A Gaussian the ranges contradict is a poor start for the ranges' own
+        update: a cloud drawn from it and weighed by them keeps a handful of particles."""
+        _, _, nis = ekf_update_runs(
+            filtered.x, filtered.P, ranges.z, ranges.q_s, self._R, ranges.valid, runs
+        )
+        return runs & (nis > self._range_gate[ranges.valid.sum(axis=1)])
 
     def _diverged(
         self,
