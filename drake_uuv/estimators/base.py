@@ -182,8 +182,7 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
     def measurement_update(
         self, context: Context, prior: Estimate, ranges: Ranges
     ) -> MeasurementUpdate | None:
-        """The posteriors of the runs with ranges to use (``updated``), or None when no run
-        has any."""
+        """The posteriors of the runs with ranges to use (``updated``), or None if none has."""
         raise NotImplementedError(f"{type(self).__name__} must define measurement_update")
 
     def advance(
@@ -457,9 +456,10 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
         """The filtered estimates of a step from its ``prior``, the variant's ``update`` and
         the status ``no_update`` (B) of a run without one: a run updated with a NIS above its
         gate keeps its prior (status GATED), a run not updated keeps it with ``no_update``."""
-        if update is None:
-            nis = np.full(len(prior.x), np.nan)
-            return FilteredEstimate(prior.x.copy(), prior.P.copy(), no_update, nis)
+        if update is None:  # no innovation: NaN NIS, none counted
+            none = np.zeros(len(prior.x))
+            x, P = prior.x.copy(), prior.P.copy()
+            return FilteredEstimate(x, P, no_update, none + np.nan, None, none, none)
         updated = update.updated
         gated = updated & (update.nis > self._gate_table[update.dof])
         accept = updated & ~gated
@@ -470,7 +470,8 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
             x, P = update.x, update.P
         status = np.where(accept, float(VALID), np.where(gated, float(GATED), no_update))
         nis = np.where(updated, update.nis, np.nan)
-        return FilteredEstimate(x, P, status, nis)
+        counted = np.where(updated, update.nis, 0.0), np.where(updated, update.dof, 0.0)
+        return FilteredEstimate(x, P, status, nis, None, *counted)
 
     @staticmethod
     def _no_update(ranges: Ranges) -> np.ndarray:

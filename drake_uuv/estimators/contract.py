@@ -178,6 +178,11 @@ class FilteredEstimate:
     nis: np.ndarray
     # What the published covariance adds to P (the error model's floors); None: nothing.
     floor: np.ndarray | None = None
+    # Every update of the tick, applied or gated (with late ranges, each range that arrived
+    # at it): their summed NIS and dimensions (B each; 0 and 0 without one), the evidence a
+    # divergence test reads. None: not counted.
+    innovation_nis: np.ndarray | None = None
+    innovation_dof: np.ndarray | None = None
 
     @property
     def published_P(self) -> np.ndarray:
@@ -192,7 +197,11 @@ class FilteredEstimate:
     def run(self, i: int) -> "FilteredEstimate":
         """Run i's estimate as a batch of one."""
         runs = slice(i, i + 1)
-        floor = None if self.floor is None else self.floor[runs]
+
+        def part(value: np.ndarray | None) -> np.ndarray | None:
+            return None if value is None else value[runs]
+
         return FilteredEstimate(
-            self.x[runs], self.P[runs], self.status[runs], self.nis[runs], floor
-        )
+            self.x[runs], self.P[runs], self.status[runs], self.nis[runs], part(self.floor),
+            part(self.innovation_nis), part(self.innovation_dof),
+        )  # fmt: skip

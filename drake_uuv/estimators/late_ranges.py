@@ -57,13 +57,18 @@ class LateRanges:
         _, _, outcomes = self._stepped.Eval(context)
         applied_nis, applied = np.zeros(B), np.zeros(B, dtype=bool)
         news_nis, news = np.zeros(B), np.zeros(B, dtype=bool)
+        news_dof = np.zeros(B)
         for u in (u for o in outcomes for u in o.updates):
             present = u.new & (u.status != NO_UPDATE)
             valid = present & (u.status == VALID)
             applied_nis = applied_nis + np.where(valid, u.nis, 0.0)
             applied |= valid
             news_nis = news_nis + np.where(present, u.nis, 0.0)
+            news_dof = news_dof + np.where(present, u.dof, 0)
             news |= present
+        # Every range that arrived at this tick, applied or gated, and this tick's own.
+        estimate.innovation_nis = estimate.innovation_nis + news_nis
+        estimate.innovation_dof = estimate.innovation_dof + news_dof
         now = (estimate.status == VALID) & updated_now
         applied_nis = applied_nis + np.where(now, estimate.nis, 0.0)
         applied |= now

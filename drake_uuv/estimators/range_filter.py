@@ -21,6 +21,8 @@ their config dataclass names (``range_update()``, ``handover_policy()``,
 ``particle_parameters()``).
 """
 
+import dataclasses
+
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues
 
@@ -35,6 +37,7 @@ from drake_uuv.estimators.contract import (
 from drake_uuv.estimators.linear_start import LinearStart
 from drake_uuv.estimators.particle_cloud import ParticleCloud
 from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
+from drake_uuv.models.divergence import DivergenceTest
 from drake_uuv.models.filter_runs import range_difference_update_runs
 from drake_uuv.models.handover import HandoverPolicy, Phase, PhaseEvidence
 from drake_uuv.models.measurement import VALID
@@ -152,11 +155,6 @@ class RangeFilter(RelativeStateEstimator):
         )
         self._divergence = config.divergence_test()
         if self._divergence is not None:
-            if self.window is not None:
-                raise ValueError(
-                    "recovery_window: a recovery with late ranges (sonar ping offsets or "
-                    f"latency) is not supported, got {config.recovery_window!r}"
-                )
             self._window_index = self.DeclareDiscreteState(self._divergence.empty(B).ravel())
             self._recovery_index = self.DeclareDiscreteState(
                 tiled([0.0, np.nan, np.nan, np.nan], B)
@@ -168,6 +166,12 @@ class RangeFilter(RelativeStateEstimator):
     @property
     def policy(self) -> HandoverPolicy:
         return self._policy
+
+    @property
+    def divergence(self) -> DivergenceTest | None:
+        """The windowed NIS test that sends a diverged run back to its linear start (None:
+        no recovery)."""
+        return self._divergence
 
     @property
     def cloud(self) -> ParticleCloud | None:
@@ -251,14 +255,18 @@ class RangeFilter(RelativeStateEstimator):
             return None
         x, P, nis, _ = self._cloud.posterior(context)
         status = np.where(np.isfinite(nis), float(VALID), self.arrival_status(context))
+        # The particle runs' innovations are not counted: only the Gaussian phase's are tested.
         if particle.all():
-            return FilteredEstimate(x, P, status, nis)
+            none = np.zeros(self.batch_size)
+            return FilteredEstimate(x, P, status, nis, innovation_nis=none, innovation_dof=none)
         base = self._filtered_by_update(context)
         return FilteredEstimate(
             np.where(particle[:, np.newaxis], x, base.x),
             np.where(particle[:, np.newaxis, np.newaxis], P, base.P),
             np.where(particle, status, base.status),
             np.where(particle, nis, base.nis),
+            innovation_nis=base.innovation_nis,
+            innovation_dof=base.innovation_dof,
         )
 
     def step_belief(self, context: Context, x: np.ndarray, P: np.ndarray, step) -> StepOutcome:
@@ -307,8 +315,9 @@ class RangeFilter(RelativeStateEstimator):
                 wait = self._ranges_contradict(filtered, ranges, leaving)
                 following = np.where(wait, _LINEAR, following)
         redraw &= asked
+        restart = np.zeros(self.batch_size, dtype=bool)
         if self._divergence is not None:
-            restart, scale = self._diverged(context, phases, filtered, ranges, discrete_state)
+            restart, scale = self._diverged(context, phases, filtered, discrete_state)
             following = np.where(restart, _LINEAR, following)
             redraw &= ~restart
             done = np.where(restart, 0.0, done)
@@ -332,6 +341,12 @@ class RangeFilter(RelativeStateEstimator):
             outcome = self.anchor_advance(context) if gaussian.any() else None
             if outcome is not None:
                 self.write_prediction(discrete_state, outcome.x, outcome.P, runs=gaussian)
+            if restart.any():
+                # A restart widens the anchor: the linear start steps again through the
+                # window's ranges from there.
+                anchor = self.anchor(context) if outcome is None else outcome
+                widened = self._widened(anchor.P, scale)
+                self.write_prediction(discrete_state, anchor.x, widened, runs=restart)
         if to_particles.any():
             self._advance_particles(context, filtered, discrete_state, phases, redraw, to_particles)
         elif (
@@ -360,22 +375,23 @@ class RangeFilter(RelativeStateEstimator):
         context: Context,
         phases: np.ndarray,
         filtered: FilteredEstimate,
-        ranges: Ranges,
         discrete_state: DiscreteValues,
     ) -> tuple[np.ndarray, np.ndarray]:
         """The runs whose Gaussian update has diverged by this tick (B) and each one's
-        window mean NIS per dimension (B). Each run in the Gaussian phase adds its update's
-        NIS (applied or gated: a diverged filter gates its ranges) to its window; a run
-        outside that phase, or restarting, empties it. Writes the windows and, for a
+        window mean NIS per dimension (B). Each run in the Gaussian phase with an update at
+        this tick adds the tick's summed NIS and dimensions to its window (every update,
+        applied or gated: a diverged filter gates its ranges; with late ranges, every range
+        that arrived at the tick, each counted once); a run in its linear start, or
+        restarting, empties it, and the particle bridge pauses it. Writes the windows and, for a
         restart, the record ``[restarts so far, the window's summed NIS, the threshold it
         exceeded, its summed dimensions]``."""
         B, test = self.batch_size, self._divergence
         n = test.window
         windows = per_run(context.get_discrete_state(self._window_index).get_value(), B)
         gaussian = phases == _RANGE
-        new = gaussian & np.isfinite(filtered.nis)
-        dof = ranges.valid.sum(axis=1).astype(float)
-        windows = test.pushed(windows, filtered.nis, dof, new)
+        nis, dof = filtered.innovation_nis, filtered.innovation_dof
+        new = gaussian & (dof > 0) & np.isfinite(nis)
+        windows = test.pushed(windows, nis, dof, new)
         diverged, total, threshold = test.diverged(windows)
         restart = new & diverged
         summed_dof = windows[:, n:].sum(axis=1)
@@ -384,7 +400,10 @@ class RangeFilter(RelativeStateEstimator):
             fresh = np.stack([record[:, 0] + 1.0, total, threshold, summed_dof], axis=1)
             record = np.where(restart[:, np.newaxis], fresh, record)
             discrete_state.set_value(self._recovery_index, record.ravel())
-        windows = np.where((gaussian & ~restart)[:, np.newaxis], windows, np.nan)
+        # The linear start (and a restart) empties the window; the bridge's particles pause
+        # it (their ticks add nothing): a run that swings between the two keeps its evidence.
+        kept = (phases != _LINEAR) & ~restart
+        windows = np.where(kept[:, np.newaxis], windows, np.nan)
         discrete_state.set_value(self._window_index, windows.ravel())
         with np.errstate(invalid="ignore", divide="ignore"):
             scale = np.where(restart, total / summed_dof, 1.0)
@@ -396,9 +415,14 @@ class RangeFilter(RelativeStateEstimator):
         """``filtered`` with each restarting run's covariance widened by its window's mean NIS
         per dimension ``scale`` (so its innovations become typical) plus the initial
         covariance (so the linear start does not begin overconfident)."""
-        widened = filtered.P * scale[:, np.newaxis, np.newaxis] + self._restart_P
-        P = np.where(restart[:, np.newaxis, np.newaxis], widened, filtered.P)
-        return FilteredEstimate(filtered.x, P, filtered.status, filtered.nis, filtered.floor)
+        widened = self._widened(filtered.P, scale)
+        return dataclasses.replace(
+            filtered, P=np.where(restart[:, np.newaxis, np.newaxis], widened, filtered.P)
+        )
+
+    def _widened(self, P: np.ndarray, scale: np.ndarray) -> np.ndarray:
+        """``P`` (B, 6, 6) scaled by each run's ``scale`` (B), plus the initial covariance."""
+        return P * scale[:, np.newaxis, np.newaxis] + self._restart_P
 
     def _advance_particles(
         self,

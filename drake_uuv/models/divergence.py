@@ -45,9 +45,14 @@ class DivergenceTest:
         object.__setattr__(self, "_thresholds", np.array(table))
 
     def threshold(self, dof: np.ndarray | int) -> np.ndarray:
-        """The summed NIS above which a window of ``dof`` summed dimensions (1 … 2·window)
-        fails (``inf`` for 0)."""
-        return self._thresholds[np.asarray(dof, dtype=np.intp)]
+        """The summed NIS above which a window of ``dof`` summed dimensions fails (``inf``
+        for 0; tabled up to 2·window, two ranges an update, and computed beyond)."""
+        dof = np.asarray(dof, dtype=np.intp)
+        table = self._thresholds
+        if dof.size and dof.max() >= len(table):  # rare: more than two ranges at some tick
+            more = range(len(table), int(dof.max()) + 1)
+            table = np.append(table, [chi2_ppf(1.0 - self.probability, k) for k in more])
+        return table[dof]
 
     def empty(self, batch_size: int) -> np.ndarray:
         """Windows holding no update: (B, 2·window), the NIS then the dimensions."""

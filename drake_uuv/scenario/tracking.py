@@ -37,8 +37,10 @@ class TrackingOptions:
     # by s_i = 1/(1 + P_ii/σ²) along each world axis with "axis". None: no scaling.
     caution_position_std: float | None = None
     caution_scaling: str = "trace"
-    # Hold station (no acceleration) while the estimator is in its linear start (the law
-    # then reads the raw-range filters' estimator_phase; the paper's KF never hands over, and
+    # Hold station while the estimator is in its linear start: the command brings the
+    # vehicle to rest (-v/t, within max_acceleration) and keeps it there, so a run sent back
+    # to the linear start by a recovery stops rather than coasts (the law then reads the
+    # raw-range filters' estimator_phase and v_WU_nav; the paper's KF never hands over, and
     # with it the option holds nothing).
     hold_until_handover: bool = False
     # A top speed [m/s] the law keeps to (None: only the plant's, if it has one): the command

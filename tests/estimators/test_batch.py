@@ -5,6 +5,7 @@ a run that failed (NaN)."""
 
 import numpy as np
 import pytest
+from numpy.testing import assert_allclose, assert_array_equal
 
 from drake_uuv.estimators import EstimatorSetting, RangeDifferenceKalmanFilter, RangeFilter
 from drake_uuv.models.handover import Phase
@@ -15,6 +16,7 @@ from drake_uuv.models.measurement import (
     VALID,
     range_measurement,
 )
+from drake_uuv.models.statistics import chi2_ppf
 from drake_uuv.models.timing import PingSchedule
 from drake_uuv.scenario import Ekf, Iekf, NavigationErrors, PaperKf, ParticleFilter, Ukf
 from drake_uuv.testing import assert_batch_equals_runs, fixed_context
@@ -234,11 +236,26 @@ def test_with_late_ranges_errors_navigation_and_a_failed_run(kind: str) -> None:
     assert_batch_equals_runs(make, inputs, states, time=7 * T)
 
 
-def random_cloud_runs(make, B: int, seed: int, tick: int, *, errors: bool = False, nan_run=None):
+def recovery_states(rng: np.random.Generator, B: int, window: int) -> list[np.ndarray]:
+    """A Gaussian filter's recovery state for B runs: windows one update short of full (this
+    tick's fills them), the even runs' far above their χ² quantile, the odd ones' typical;
+    and records of no restart so far."""
+    windows = np.full((B, 2 * window), np.nan)
+    scale = np.where(np.arange(B) % 2 == 0, 40.0, 1.0)
+    windows[:, 1:window] = rng.chisquare(2, size=(B, window - 1)) * scale[:, np.newaxis]
+    windows[:, window + 1 :] = 2.0
+    return [windows, np.tile([0.0, np.nan, np.nan, np.nan], (B, 1))]
+
+
+def random_cloud_runs(
+    make, B: int, seed: int, tick: int, *, errors: bool = False, nan_run=None,
+    diverging: bool = False,
+):  # fmt: skip
     """Random runs with late ranges (:func:`random_timed_runs`) whose phases mix the particle
     phase (a live cloud at the window's anchor with its window's accelerations, and with
     navigation errors their noise) with the linear start and, for a filter with a Gaussian
-    update, the Gaussian phase; and each run's uniform of the step."""
+    update, the Gaussian phase; and each run's uniform of the step. A Gaussian filter's
+    recovery windows are empty, or with ``diverging`` about to fire in the even runs."""
     rng = np.random.default_rng(100 + seed)
     inputs, states = random_timed_runs(make, B, seed, tick, navigated=errors)
     system = make(1)
@@ -258,6 +275,12 @@ def random_cloud_runs(make, B: int, seed: int, tick: int, *, errors: bool = Fals
         states.append(0.01 * rng.standard_normal((B, D * 6 * COUNT)))
     if nan_run is not None:
         states[-5 if errors else -4][nan_run] = np.nan
+    test = system.divergence if system.policy.particle_bridge else None
+    if test is not None:
+        recovery = recovery_states(rng, B, test.window)
+        if not diverging:
+            recovery[0][:] = np.nan
+        states += recovery
     assert len(states) == system.num_discrete_state_groups()
     inputs["particle_seed"] = rng.random((B, 1))
     return inputs, states
@@ -273,7 +296,7 @@ def test_with_late_ranges_a_batch_of_clouds_is_each_run_alone(kind: str, B: int)
     make = cloud_maker(kind)
     for seed in (0, 2):
         for tick in (1, 6):
-            inputs, states = random_cloud_runs(make, B, seed, tick)
+            inputs, states = random_cloud_runs(make, B, seed, tick, diverging=True)
             assert_batch_equals_runs(make, inputs, states, time=tick * T)
 
 
@@ -337,3 +360,51 @@ def cloud_maker(kind: str, errors: bool = False, **fields):
         return RangeFilter(config, setting=timed, batch_size=batch_size)
 
     return make
+
+
+def test_with_late_ranges_a_diverged_run_restarts_from_its_widened_anchor() -> None:
+    """The recovery with late ranges: each Gaussian run adds every range that arrived at this
+    tick (applied or gated) to its window; the even runs' windows, far above their χ²
+    quantile, fire. A restarting run goes back to its linear start, its record says why (the
+    window's sum above the quantile of its summed dimensions), and the anchor it writes is
+    the window's oldest step moved on with the covariance widened by the window's mean NIS
+    per dimension plus the initial covariance; the other runs write theirs unwidened."""
+    window = 3
+    make = timed_maker("ekf", recovery_window=window, **NO_PARTICLES)
+    B = 6
+    inputs, states = random_timed_runs(make, B, 7, tick=6)
+    states[-1][:, 0] = float(Phase.RANGE)
+    states += recovery_states(np.random.default_rng(8), B, window)
+    system = make(B)
+    context = fixed_context(system, **{k: v.ravel() for k, v in inputs.items()})
+    context.SetTime(6 * T)
+    for group, value in enumerate(states):
+        context.SetDiscreteState(group, value.ravel())
+    # This tick's new ranges: those that arrived valid (random_timed_runs' arrivals).
+    arrived = (inputs["sonar_status"] == VALID).sum(axis=1)
+    outcome = system.anchor_advance(context)
+    after = system.EvalUniquePeriodicDiscreteUpdate(context)
+    record = after.get_vector(8).value().reshape(B, 4)
+    restarted = record[:, 0] == 1.0
+    even = np.arange(B) % 2 == 0
+    assert restarted.tolist() == (even & (arrived > 0)).tolist()
+    assert restarted.any()
+    phase = after.get_vector(6).value().reshape(B, 2)[:, 0]
+    assert (phase[restarted] == float(Phase.LINEAR)).all()
+    assert (phase[~restarted] != float(Phase.LINEAR)).all()
+    # Why: the window's sum, the χ² quantile of its dimensions (2 per earlier update, and
+    # this tick's arrivals).
+    dims = 2.0 * (window - 1) + arrived
+    assert_allclose(record[restarted, 3], dims[restarted])
+    quantiles = [chi2_ppf(1 - system.divergence.probability, d) for d in dims[restarted]]
+    assert_allclose(record[restarted, 2], quantiles, rtol=1e-12)
+    assert (record[restarted, 1] > record[restarted, 2]).all()
+    # The anchor: moved on, widened where the run restarts.
+    P_next = after.get_vector(1).value().reshape(B, 6, 6)
+    x_next = after.get_vector(0).value().reshape(B, 6)
+    scale = record[:, 1] / record[:, 3]
+    P0 = system.initial_estimate.P
+    widened = outcome.P * scale[:, None, None] + P0
+    assert_allclose(P_next[restarted], widened[restarted], rtol=1e-14)
+    assert_array_equal(P_next[~restarted], outcome.P[~restarted])
+    assert_array_equal(x_next, outcome.x)

@@ -14,7 +14,7 @@ from drake_uuv.models.statistics import chi2_ppf
 from drake_uuv.scenario import Ekf, Ukf
 from drake_uuv.scenario.validation import ScenarioError
 from drake_uuv.testing import assert_batch_equals_runs
-from tests.estimators.test_batch import maker, random_runs
+from tests.estimators.test_batch import maker, random_runs, recovery_states
 
 Q_S = np.array([0.3, -1.3, 0.4])
 
@@ -148,17 +148,10 @@ def test_the_recovery_options_are_validated() -> None:
 
 
 def recovering_runs(make, B: int, seed: int, window: int):
-    """Random runs with windows one update short of full (this step's fills them): those of
-    the even runs far above their χ² quantile, the odd ones' typical; phases mixed."""
+    """Random runs whose recovery windows fire in the even runs at this step; phases mixed."""
     inputs, states = random_runs(make, B, seed)
-    rng = np.random.default_rng(seed + 100)
-    windows = np.full((B, 2 * window), np.nan)
-    scale = np.where(np.arange(B) % 2 == 0, 40.0, 1.0)
-    windows[:, 1:window] = rng.chisquare(2, size=(B, window - 1)) * scale[:, np.newaxis]
-    windows[:, window + 1 :] = 2.0
-    records = np.tile([0.0, np.nan, np.nan, np.nan], (B, 1))
     states[3][:, 0] = np.where(np.arange(B) % 3 == 2, Phase.LINEAR, Phase.RANGE)
-    return inputs, states + [windows, records]
+    return inputs, states + recovery_states(np.random.default_rng(seed + 100), B, window)
 
 
 @pytest.mark.parametrize("kind", ["ekf", "iekf", "ukf"])
@@ -353,3 +346,21 @@ def test_the_ukf_s_correlation_multiplies_its_linearisation_error() -> None:
         )
         for a, b in zip((g[r] for g in got), want, strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.slow
+def test_with_late_ranges_recovery_keeps_runs_the_realistic_ukf_lost() -> None:
+    """The realistic scenario on the kinematic plant with the UKF: seeds 128 and 426 diverge
+    after their hand-over and end hundreds of metres off without recovery. With it (the
+    default) each returns to its linear start, the hold bringing the vehicle to rest, and
+    ends within a metre."""
+    ends = {}
+    for window in ("null", "10"):
+        sets = ["plant=KinematicUuv", "estimator=Ukf", f"estimator.recovery_window={window}"]
+        scenario = load_scenario("realistic", sets)
+        result = ClosedLoopSimulation(scenario, batch_size=2).run_batch([128, 426])
+        ends[window] = result.metrics["final_position_error"]
+        restarts = result.log["estimator_recovery"][:, -1, 0] if window == "10" else None
+    assert (ends["null"] > 100.0).all()
+    assert (ends["10"] < 1.0).all()
+    assert (restarts >= 1).all()

@@ -81,7 +81,7 @@ def test_off_the_laws_read_only_their_own_ports() -> None:
     assert names == ["x_TU_hat", "R_WB_nav"]
     on = paper(caution_position_std=1.0, hold_until_handover=True)
     names = [on.get_input_port(i).get_name() for i in range(on.num_input_ports())]
-    assert names == ["x_TU_hat", "R_WB_nav", "P_TU", "estimator_phase"]
+    assert names == ["x_TU_hat", "R_WB_nav", "P_TU", "estimator_phase", "v_WU_nav"]
     limited = lqr(TrackingSetting(time_step=T, max_speed=0.76))
     assert limited.HasInputPort("v_WU_nav") and not limited.HasInputPort("P_TU")
 
@@ -124,6 +124,7 @@ def test_the_lqr_law_scales_its_feedback_not_its_feedforward() -> None:
 
 @pytest.mark.parametrize("law", [paper, lqr])
 def test_the_law_holds_station_during_the_linear_start(law) -> None:
+    """In the linear start the law's command gives way to one that brings the vehicle to rest."""
     R = np.eye(3).ravel()
     inputs = dict(x_TU_hat=X_HAT, R_WB_nav=R)
     if law is lqr:
@@ -131,9 +132,19 @@ def test_the_law_holds_station_during_the_linear_start(law) -> None:
     full = u1_W(law(), **inputs)
     held = law(hold_until_handover=True)
     linear = [float(Phase.LINEAR), 12.0]
-    np.testing.assert_array_equal(u1_W(held, estimator_phase=linear, **inputs), np.zeros(3))
+    # At rest it stays at rest: no command at all.
+    at_rest = u1_W(held, estimator_phase=linear, v_WU_nav=np.zeros(3), **inputs)
+    np.testing.assert_array_equal(at_rest, np.zeros(3))
+    # Moving (a run sent back to its linear start), it stops in one step: v + t a = 0 ...
+    v = np.array([0.3, -0.4, 0.1])
+    stopping = u1_W(held, estimator_phase=linear, v_WU_nav=v, **inputs)
+    assert_allclose(v + T * stopping, np.zeros(3), atol=1e-15)
+    # ... or as fast as the law's acceleration limit lets it, along −v.
+    limited = u1_W(law(hold_until_handover=True, max_acceleration=0.2), estimator_phase=linear,
+                   v_WU_nav=v, **inputs)  # fmt: skip
+    assert_allclose(limited, -0.2 * v / np.linalg.norm(v), rtol=1e-14)
     for phase in (Phase.RANGE, Phase.PARTICLE):
-        after = u1_W(held, estimator_phase=[float(phase), 30.0], **inputs)
+        after = u1_W(held, estimator_phase=[float(phase), 30.0], v_WU_nav=v, **inputs)
         np.testing.assert_array_equal(after, full)
 
 
