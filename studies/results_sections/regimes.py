@@ -127,13 +127,19 @@ def wall_times(work: Path, variants: list[Any]) -> dict[str, float]:
     return {name: float(np.mean(entry["seconds"])) for name, entry in cache.items()}
 
 
-def final_state(variant: Any, seed: int) -> dict[str, float]:
+def final_state(variant: Any, seed: int) -> dict[str, Any]:
     """A diverged run, run again: its final position error [m], the filter's own final
-    ``√tr P_qq`` [m] and the final position NEES ``eᵀ P_qq⁻¹ e`` (χ²(3) if consistent)."""
-    log = ClosedLoopSimulation(load_scenario("paper", list(variant.overrides))).run(seed).log
+    ``√tr P_qq`` [m] and the final position NEES ``eᵀ P_qq⁻¹ e`` (χ²(3) if consistent); or,
+    for a run the estimator-health monitor stopped, why (``stopped``)."""
+    simulation = ClosedLoopSimulation(load_scenario("paper", list(variant.overrides)))
+    result = simulation.run_batch([seed])
+    if result.failures[0] is not None:
+        return {"stopped": result.failures[0]}
+    log = result.run_log(0)
     e = log["x_TU_hat"][-1, :3] - (log["p_WU"][-1] - log["p_WT"][-1])
     P = log["P_TU"][-1].reshape(6, 6)[:3, :3]
     return {
+        "stopped": None,
         "error": float(np.linalg.norm(e)),
         "spread": float(math.sqrt(np.trace(P))),
         "nees": float(e @ np.linalg.solve(P, e)),
@@ -321,6 +327,9 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
     for name, x in n.items():
         for seed in x["diverged_seeds"]:
             f = final_state(by_name[name], seed)
+            if f["stopped"] is not None:
+                diverged.append(f"{name} seed {seed}: stopped by the monitor, {f['stopped']}")
+                continue
             verdict = (
                 "inside its own covariance: uninformed, not lost"
                 if f["nees"] <= nees_99
