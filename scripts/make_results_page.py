@@ -9,8 +9,10 @@ Each row runs ``--runs`` seeds on the kinematic plant, a fifth of them on the ho
 a tenth with a particle filter of 20 000 particles (``studies/shares.py``).
 
 Studies are kept in ``--work`` (default ``out/results``); figures go to ``docs/figures/``.
-On a shared 2-core machine the whole page took about 30 min with the navigation section's runs
-already in ``--work`` (the comparison groups' 4100 runs about 10 min of it).
+On the project's 2-core machine, at 1000 runs a kinematic row, every section but navigation took
+about 70 min (with other work beside it; robustness 21 min, regimes 20 min); the navigation
+section's 136 rows need about 2 h more (its 36 rows with late ranges and a particle cloud cost
+0.3–0.5 s a run).
 Every sentence that states a number takes it from these runs. The results are composed as one
 Markdown text, a ``## `` section per study; ``scripts/results_pages.py`` cuts it into
 ``docs/results/index.md`` and one page per section (the site's results pages). The groups it
