@@ -397,7 +397,11 @@ class MarginalizedParticleFilter(ParticleFilter):
     1000: 0.2414); noisy_sonar 1.0248 at 1000, 1.0071 at 2000 (0.9970); far_standoff 1.1570
     at 1000, 1.1203 at 2000, 1.1104 at 3000 (1.0905). It costs what the particle filter costs
     per particle and is no more accurate at the same count here: the ranges constrain the
-    position, which both filters sample alike; marginalising the velocity removes little."""
+    position, which both filters sample alike; marginalising the velocity removes little.
+    Paired over seeds 0-299 (paper): 1000 particles 1.029× the 5000-particle filter's RMSE
+    (mean NEES 7.74: overconfident), 1.021× with ``particle_bandwidth_scale: 1.5`` (6.80); at
+    1000 particles it resamples every step whether the threshold is 0.2 or 0.5 (the same
+    bits), so its cloud is impoverished, not its velocity's Kalman filter."""
 
 
 #: The estimator slot. The first member is the default of an untagged section.
