@@ -303,10 +303,11 @@ class Ekf(LinearizedRangeOptions):
       honest covariance where the ranges bend most);
     - ``noisy_sonar``: 6.57 → 6.20 (with 7), RMSE 1.025 → 1.006 m.
 
-    With late ranges it is not yet a default: in ``realistic`` on the kinematic plant (50
-    runs, the EKF with its 20 000-particle bridge) ``full`` with 7 steps gave NEES 31.6 and
-    0.97 m against the first-order EKF's 13.6 and 0.53 m, and ``full`` with 1 step 9.7 and
-    0.45 m; without the sonars' timing the same loop is at 7.3 and 1.08× its bound with 7.
+    With late ranges it is not yet a default: in ``realistic`` on the kinematic plant (seeds
+    0-199, the EKF with its 20 000-particle bridge, recovery and hold on) ``full`` with 7 steps
+    gives NEES 7.76 but position RMSE 0.638 m (1.57× the per-run bound) against the
+    first-order EKF's 10.3 and 0.474 m (1.17×), and ``full`` with 1 step 8.28 and 0.465 m
+    (1.15×); without the sonars' timing the same loop was at 7.3 and 1.08× its bound with 7.
     The defaults are the textbook EKF's.
     """
 
