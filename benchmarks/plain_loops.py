@@ -31,6 +31,7 @@ import numpy as np
 
 from drake_uuv.models.attitude_plans import attitude_commands, trajectory_attitude
 from drake_uuv.models.measurement import MIN_RANGE
+from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.so3 import exp_so3_runs, log_so3_runs, minimal_rotation_runs
 from drake_uuv.models.tracking_laws import lqr_gain, reference_feedforward, saturate_norm
 from drake_uuv.models.vehicle_kernels import attitude_runs, stepped_runs
@@ -46,11 +47,6 @@ from drake_uuv.scenario.tracking import LqrTracking
 #: the linear start at step 23 in 94 runs and at step 22 in 6; the EKF's particle bridge
 #: holds 16 of them on particles for that one step.
 HANDOVER_STEP = 23
-
-
-def _double_integrator(t: float) -> tuple[np.ndarray, np.ndarray]:
-    A = np.block([[np.eye(3), t * np.eye(3)], [np.zeros((3, 3)), np.eye(3)]])
-    return A, np.vstack([0.5 * t * t * np.eye(3), t * np.eye(3)])
 
 
 def _range_means(
@@ -74,7 +70,7 @@ class _PaperKf:
     def __init__(self, scenario: Scenario, B: int) -> None:
         t = scenario.time_step
         est = scenario.estimator
-        self.A, self.Bm = _double_integrator(t)
+        self.A, self.Bm = double_integrator(t)
         W = est.filter_acceleration_covariance(scenario.target.acceleration_covariance)
         self.Q = self.Bm @ W @ self.Bm.T
         self.eta = np.asarray(scenario.sonar.noise_variances, float) / (

@@ -346,11 +346,15 @@ def _ukf(x, P, z, q_s, R, use, mask, root, Wm0, Wi, Wc0, scale, x_out, P_out, ni
         _sigma_points(xr, L, root, pts)
         _point_ranges(pts, q_s, r, rows, m, Z)
         _unscented_moments(Z, pts, xr, z, r, rows, m, Rm, Wm0, Wi, Wc0, z_hat, nu, S, Pxz)
-        if scale != 1.0:  # S += (scale − 1) Ω, Ω = R_eff − R the linearisation error's
-            _effective_rows(Pr, L, Pxz, S, m, H, Reff, col, tmp, sol)
+        # H = Pxzᵀ P⁻¹ and R_eff = S − H P Hᵀ, once: with the correlation, S and R_eff both
+        # gain (scale − 1) Ω, Ω = R_eff − R the linearisation error's variance.
+        _effective_rows(Pr, L, Pxz, S, m, H, Reff, col, tmp, sol)
+        if scale != 1.0:
             for a in range(m):
                 for b in range(m):
-                    S[a, b] += (scale - 1.0) * (Reff[a, b] - Rm[a, b])
+                    extra = (scale - 1.0) * (Reff[a, b] - Rm[a, b])
+                    S[a, b] += extra
+                    Reff[a, b] += extra
         _inverse_small(S, m, Sinv)
         for i in range(6):
             for a in range(m):
@@ -363,7 +367,6 @@ def _ukf(x, P, z, q_s, R, use, mask, root, Wm0, Wi, Wc0, scale, x_out, P_out, ni
             for a in range(m):
                 s += K[i, a] * nu[a]
             x_out[r, i] = s
-        _effective_rows(Pr, L, Pxz, S, m, H, Reff, col, tmp, sol)
         _joseph_into(Pr, K, H, Reff, m, P_out[r])
         nis_out[r] = _quadratic(nu, Sinv, m)
 

@@ -85,13 +85,15 @@ class CautiousLoop:
         """``a_W`` (B×3) bringing the run to rest where it holds station, then within the top
         speed."""
         B = self._batch_size
-        v = None if self._velocity_port is None else per_run(self._velocity_port.Eval(context), B)
+        v = None  # read once, and only where a run holds or a top speed applies
         if self._phase_port is not None:
             phase = per_run(self._phase_port.Eval(context), B)[:, 0]
             holding = (phase == _LINEAR)[:, np.newaxis]
             if holding.any():
+                v = per_run(self._velocity_port.Eval(context), B)
                 rest = saturate_norm(-v / self._time_step, self._max_acceleration)
                 a_W = np.where(holding, rest, a_W)
         if self._max_speed is not None:
+            v = per_run(self._velocity_port.Eval(context), B) if v is None else v
             a_W = speed_limited_acceleration(v, a_W, self._time_step, self._max_speed)
         return a_W
