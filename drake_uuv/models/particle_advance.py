@@ -127,9 +127,10 @@ def starting_weights(
     Shared by the particle and the marginalised clouds' periodic updates."""
     if drawn[b]:
         if weigh_draw[b]:
+            # Not in place: a tempered update reads the prior log weights.
             weigh_into(
-                drawn_cloud, offset[b], lw, weights, z[b], used[b], q_s[b], R[b], ranges, lw,
-                weights,
+                drawn_cloud, offset[b], lw.copy(), weights.copy(), z[b], used[b], q_s[b], R[b],
+                ranges, lw, weights,
             )  # fmt: skip
         return False
     if reweigh[b]:  # the posterior's weights and moments (stored frame: less offset)

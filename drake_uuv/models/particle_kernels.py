@@ -35,6 +35,10 @@ from numba import njit
 # other reordering, so each sum still runs in the loop's order.
 CONTRACT = {"contract"}
 
+#: The fewest particles a measurement update may leave with weight: below it, the update
+#: tempers the ranges' likelihood (see :func:`_temper_into`).
+TEMPERING_FLOOR = 20.0
+
 
 @njit(cache=True)
 def psd_factor(M: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - compiled
@@ -225,7 +229,13 @@ def weigh_into(
     weights): the normalised posterior log weights in ``out``; returns the NIS of ``z``
     against the particles' predicted ranges (mean and covariance under ``prior``, plus the
     noise), and the posterior's normalised weights in ``posterior`` (may be ``prior``).
-    ``ranges`` (N×2) is work space. No sonar used: ``out`` the log weights, NIS NaN."""
+    ``ranges`` (N×2) is work space. No sonar used: ``out`` the log weights, NIS NaN.
+
+    A posterior that keeps fewer than :data:`TEMPERING_FLOOR` particles (a cloud drawn from
+    a loose Gaussian meeting precise ranges: a handful of 5000 particles fall inside the
+    ranges' shell, the weighted covariance loses rank and the run is lost) is tempered to keep
+    that many (:func:`_temper_into`): the cloud keeps its diversity and takes the rest of the
+    ranges' information over the next steps. ``out`` must not be ``log_weights``."""
     n = particles.shape[0]
     s0, s1 = used[0], used[1]
     if not (s0 or s1):
@@ -274,7 +284,62 @@ def weigh_into(
             e = ranges[i, s] - z[s]
             out[i] = log_weights[i] - half * e * e
     _normalise_log_into(out, posterior)
+    if _effective_size(posterior) < TEMPERING_FLOOR:
+        _temper_into(log_weights, out, posterior)
     return nis
+
+
+@njit
+def _effective_size(weights: np.ndarray) -> float:  # pragma: no cover - compiled
+    """``1 / Σ w²`` of normalised weights (NaN weights: NaN)."""
+    squares = 0.0
+    for i in range(weights.shape[0]):
+        squares += weights[i] * weights[i]
+    return 1.0 / squares
+
+
+@njit
+def _tempered_size(log_weights: np.ndarray, log_posterior: np.ndarray, power: float) -> float:
+    """The effective sample size of ``log_weights + power · ℓ`` with ``ℓ`` the likelihood
+    ``log_posterior − log_weights`` (a particle of zero prior weight keeps none)."""
+    n = log_weights.shape[0]
+    top = -math.inf
+    for i in range(n):
+        if log_weights[i] > -math.inf:
+            top = max(top, log_weights[i] + power * (log_posterior[i] - log_weights[i]))
+    total = squares = 0.0
+    for i in range(n):
+        if log_weights[i] > -math.inf:
+            w = math.exp(log_weights[i] + power * (log_posterior[i] - log_weights[i]) - top)
+            total += w
+            squares += w * w
+    return total * total / squares
+
+
+@njit
+def _temper_into(
+    log_weights: np.ndarray, log_posterior: np.ndarray, posterior: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """Replaces a posterior that kept fewer than :data:`TEMPERING_FLOOR` particles by the
+    prior times the likelihood to the largest power ``λ ≤ 1`` that keeps that many (bisection,
+    40 halvings), when the prior itself keeps them: ``log_posterior`` and ``posterior``
+    rewritten, normalised. A prior below the floor is left to the likelihood (tempering could
+    not restore it)."""
+    if not _tempered_size(log_weights, log_posterior, 0.0) >= TEMPERING_FLOOR:
+        return
+    low, high = 0.0, 1.0
+    for _ in range(40):
+        middle = 0.5 * (low + high)
+        if _tempered_size(log_weights, log_posterior, middle) >= TEMPERING_FLOOR:
+            low = middle
+        else:
+            high = middle
+    for i in range(log_weights.shape[0]):
+        if log_weights[i] > -math.inf:
+            log_posterior[i] = log_weights[i] + low * (log_posterior[i] - log_weights[i])
+        else:
+            log_posterior[i] = -math.inf
+    _normalise_log_into(log_posterior, posterior)
 
 
 @njit(cache=True, fastmath=CONTRACT)
