@@ -124,6 +124,51 @@ def test_the_posterior_is_pf_update(sonars, correlated):
         assert_allclose(weights[run], np.exp(ref[3]), rtol=1e-12)
 
 
+def _effective_size(log_weights: np.ndarray) -> float:
+    w = np.exp(log_weights - log_weights.max())
+    return w.sum() ** 2 / (w * w).sum()
+
+
+def test_a_posterior_that_keeps_too_few_particles_is_tempered_to_the_floor():
+    """A wide cloud meets precise ranges: Bayes' rule keeps a handful of particles. The update
+    keeps the prior times the likelihood to the largest power λ < 1 that leaves
+    ``TEMPERING_FLOOR`` particles' worth (the numpy Bayes rule's likelihood, raised to λ),
+    its moments those weights' and its NIS the plain update's."""
+    floor = particle_kernels.TEMPERING_FLOOR
+    particles, log_weights = cloud(1, 3000, spread=2.0)
+    z, used, q_s = ranges(1)
+    R = np.diag([1e-4, 1e-4])
+    x, P, nis, log_post, weights = posterior(particles, log_weights, z, used, q_s, R[None])
+    ref = pf_update(particles[0].T, log_weights[0], z[0], q_s[0], R, (0, 1))
+    assert _effective_size(ref[3]) < 3.0  # plain Bayes keeps about one particle
+    likelihood = ref[3] - log_weights[0]
+    # The tempered log weights are the prior's plus λ times the likelihood (up to a constant).
+    power, shift = np.polyfit(likelihood, log_post[0] - log_weights[0], 1)
+    assert_allclose(log_post[0] - log_weights[0], power * likelihood + shift, atol=1e-8)
+    assert 0.0 < power < 1.0
+    assert floor <= _effective_size(log_post[0]) <= floor * (1.0 + 1e-6)
+    # λ is the largest such power: a little more keeps fewer.
+    assert _effective_size(log_weights[0] + power * 1.001 * likelihood) < floor
+    assert weights[0] == pytest.approx(np.exp(log_post[0]), rel=1e-12)
+    w = weights[0]
+    mean = w @ particles[0]
+    assert_allclose(x[0], mean, rtol=1e-10)
+    assert_allclose(P[0], (particles[0] - mean).T @ ((particles[0] - mean) * w[:, None]), rtol=1e-9)
+    assert nis[0] == pytest.approx(ref[2], rel=1e-10)
+
+
+def test_a_prior_below_the_floor_is_left_to_bayes_rule():
+    """Tempering cannot restore a prior that already keeps fewer particles than the floor:
+    its update is the plain Bayes rule."""
+    particles, log_weights = cloud(1, 3000, spread=2.0)
+    log_weights[0, :10] += 50.0  # ten particles hold the prior's weight
+    z, used, q_s = ranges(1)
+    R = np.diag([1e-4, 1e-4])
+    *_, log_post, _ = posterior(particles, log_weights, z, used, q_s, R[None])
+    ref = pf_update(particles[0].T, log_weights[0], z[0], q_s[0], R, (0, 1))
+    assert_allclose(log_post[0], ref[3], rtol=1e-12, atol=1e-9)
+
+
 def test_without_a_range_or_not_live_the_weights_stand():
     particles, log_weights = cloud(2, 200)
     z, used, q_s = ranges(2)
