@@ -377,9 +377,10 @@ class RangeFilter(RelativeStateEstimator):
         filtered: FilteredEstimate,
         discrete_state: DiscreteValues,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The runs whose Gaussian update has diverged by this tick (B) and each one's
-        window mean NIS per dimension (B). Each run in the Gaussian phase with an update at
-        this tick adds the tick's summed NIS and dimensions to its window (every update,
+        """The runs whose update has diverged by this tick (B) and each one's window mean NIS
+        per dimension (B). Each run in its filter's own phase (a Gaussian filter's Gaussian
+        phase, the particle filter's particle phase) with an update at this tick adds the
+        tick's summed NIS and dimensions to its window (every update,
         applied or gated: a diverged filter gates its ranges; with late ranges, every range
         that arrived at the tick, each counted once); a run in its linear start, or
         restarting, empties it, and the particle bridge pauses it. Writes the windows and, for a
@@ -388,9 +389,11 @@ class RangeFilter(RelativeStateEstimator):
         B, test = self.batch_size, self._divergence
         n = test.window
         windows = per_run(context.get_discrete_state(self._window_index).get_value(), B)
-        gaussian = phases == _RANGE
+        # The filter's own update: a Gaussian filter's (its bridge's particles are not
+        # tested), the particle filter's particle phase.
+        tested = phases == (_RANGE if self._gaussian else _PARTICLE)
         nis, dof = filtered.innovation_nis, filtered.innovation_dof
-        new = gaussian & (dof > 0) & np.isfinite(nis)
+        new = tested & (dof > 0) & np.isfinite(nis)
         windows = test.pushed(windows, nis, dof, new)
         diverged, total, threshold = test.diverged(windows)
         restart = new & diverged

@@ -6,15 +6,16 @@ import numpy as np
 import pytest
 
 from drake_uuv import ClosedLoopSimulation, load_scenario
+from drake_uuv.estimators import RangeFilter
 from drake_uuv.models.divergence import DivergenceTest
 from drake_uuv.models.filters import ekf_update, second_order_range_terms
 from drake_uuv.models.handover import Phase
 from drake_uuv.models.raw_range_runs import ekf_update_runs
 from drake_uuv.models.statistics import chi2_ppf
-from drake_uuv.scenario import Ekf, Ukf
+from drake_uuv.scenario import Ekf, ParticleFilter, Ukf
 from drake_uuv.scenario.validation import ScenarioError
-from drake_uuv.testing import assert_batch_equals_runs
-from tests.estimators.test_batch import maker, random_runs, recovery_states
+from drake_uuv.testing import assert_batch_equals_runs, fixed_context
+from tests.estimators.test_batch import X_TRUE, maker, random_runs, recovery_states, setting
 
 Q_S = np.array([0.3, -1.3, 0.4])
 
@@ -143,6 +144,8 @@ def test_the_recovery_options_are_validated() -> None:
         Ekf(recovery_window=0).validate("estimator")
     with pytest.raises(ScenarioError, match=r"^estimator.recovery_probability: must be in"):
         Ukf(recovery_window=5, recovery_probability=0.0).validate("estimator")
+    with pytest.raises(ScenarioError, match=r"^estimator.recovery_window: must be an integer"):
+        ParticleFilter(recovery_window=1.5).validate("estimator")
     with pytest.raises(ScenarioError, match=r"^estimator.second_order: must be one of"):
         Ekf(second_order="third").validate("estimator")
 
@@ -190,6 +193,45 @@ def test_a_diverged_run_returns_to_its_linear_start_and_says_why() -> None:
     assert (next_phase[diverged, 0] == int(Phase.LINEAR)).all()
     assert (next_phase[diverged, 1] == 0).all()
     logged = after.get_vector(5).value().reshape(6, 4)
+    assert (logged[diverged, 0] == record[diverged, 0] + 1).all()
+    assert (logged[diverged, 1] > logged[diverged, 2]).all()
+    assert (logged[~diverged, 0] == record[~diverged, 0]).all()
+
+
+def test_a_diverged_particle_filter_returns_to_its_linear_start_and_says_why() -> None:
+    """The particle filter's own update is its particle phase: each run's cloud posterior NIS
+    fills its window, and a run whose window exceeds the quantile goes back to its linear
+    start (no linear update yet), the record counting the restart; the others keep their
+    particles and their record."""
+    count, B = 40, 6
+    config = ParticleFilter(gate_probability=0.99, particle_count=count, recovery_window=3)
+
+    def make(batch_size: int) -> RangeFilter:
+        return RangeFilter(config, setting=setting(False), batch_size=batch_size)
+
+    inputs, states = random_runs(make, B, 2)
+    rng = np.random.default_rng(7)
+    states[3][:, 0] = Phase.PARTICLE
+    particles = X_TRUE + 0.2 * rng.standard_normal((B, count, 6))
+    states += [particles.reshape(B, -1), np.full((B, count), -np.log(count)), np.ones((B, 1))]
+    states += recovery_states(rng, B, 3)
+    inputs["particle_seed"] = rng.uniform(size=(B, 1))
+    system = make(B)
+    context = fixed_context(system, **{k: v.ravel() for k, v in inputs.items()})
+    for group, value in enumerate(states):
+        context.SetDiscreteState(group, value.ravel())
+    nis = system.GetOutputPort("nis").Eval(context)
+    after = system.EvalUniquePeriodicDiscreteUpdate(context)
+    test = system.divergence
+    valid = np.isfinite(nis)
+    dof = (inputs["sonar_status"] == 0).sum(axis=1).astype(float)
+    diverged = test.diverged(test.pushed(states[7], nis, dof, valid))[0] & valid
+    assert diverged.any() and not diverged.all()
+    next_phase = after.get_vector(3).value().reshape(B, 2)
+    assert (next_phase[diverged] == [int(Phase.LINEAR), 0]).all()
+    assert (next_phase[~diverged, 0] == int(Phase.PARTICLE)).all()
+    record = states[8]
+    logged = after.get_vector(8).value().reshape(B, 4)
     assert (logged[diverged, 0] == record[diverged, 0] + 1).all()
     assert (logged[diverged, 1] > logged[diverged, 2]).all()
     assert (logged[~diverged, 0] == record[~diverged, 0]).all()
@@ -346,6 +388,27 @@ def test_the_ukf_s_correlation_multiplies_its_linearisation_error() -> None:
         )
         for a, b in zip((g[r] for g in got), want, strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.slow
+def test_recovery_keeps_the_particle_filter_run_lost_to_a_wrong_mode() -> None:
+    """σ = 0.5 m at the paper's standoff, seed 382: the linear start hands the particle
+    filter a Gaussian 12 m off, its cloud settles on a wrong solution of the two ranges
+    (4 m off), and as the baseline turns its innovations grow until the monitor stops the
+    run (median NIS 100). With recovery (the default) it returns to its linear start once
+    and ends within half a metre."""
+
+    def run(window: str):
+        sets = ["sonar.noise_variances=[0.25, 0.25]", "estimator=!ParticleFilter",
+                f"estimator.recovery_window={window}"]  # fmt: skip
+        return ClosedLoopSimulation(load_scenario("paper", sets)).run_batch([382])
+
+    lost = run("null")
+    assert lost.failures[0] is not None and "innovations blew up" in lost.failures[0]
+    kept = run("10")
+    assert kept.failures == [None]
+    assert kept.metrics["final_position_error"][0] < 0.5
+    assert kept.log["estimator_recovery"][0, -1, 0] == 1
 
 
 @pytest.mark.slow
