@@ -324,7 +324,9 @@ def _temper_into(
     prior times the likelihood to the largest power ``λ ≤ 1`` that keeps that many (bisection,
     40 halvings), when the prior itself keeps them: ``log_posterior`` and ``posterior``
     rewritten, normalised. A prior below the floor is left to the likelihood (tempering could
-    not restore it)."""
+    not restore it). One stage of Oudjane & Musso's progressive correction ("Progressive
+    correction for regularized particle filters", FUSION 2000): the rest of the likelihood is
+    not applied at this tick; the next ticks' ranges carry the same information."""
     if not _tempered_size(log_weights, log_posterior, 0.0) >= TEMPERING_FLOOR:
         return
     low, high = 0.0, 1.0
