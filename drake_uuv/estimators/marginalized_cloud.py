@@ -174,6 +174,7 @@ class MarginalizedRangeFilter(RangeFilter):
         - measurement_status
         - nis
         - estimator_phase
+        - estimator_recovery
     """
 
     cloud_type = MarginalizedCloud

@@ -31,13 +31,11 @@ import math
 import numpy as np
 from numba import njit
 
+from drake_uuv.models.particle_filter import TEMPERING_FLOOR
+
 # Products and sums may fuse into FMAs (the same instructions for every run and batch); no
 # other reordering, so each sum still runs in the loop's order.
 CONTRACT = {"contract"}
-
-#: The fewest particles a measurement update may leave with weight: below it, the update
-#: tempers the ranges' likelihood (see :func:`_temper_into`).
-TEMPERING_FLOOR = 20.0
 
 
 @njit(cache=True)

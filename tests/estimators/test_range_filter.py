@@ -64,10 +64,16 @@ def test_ports_sizes_and_feedthrough(kind: str, bridge: bool) -> None:
         sizes["particle_seed"] = 1
     names = [system.get_input_port(i).get_name() for i in range(system.num_input_ports())]
     assert {n: system.GetInputPort(n).size() for n in names} == sizes
-    outputs = {"x_TU_hat": 6, "P_TU": 36, "x_TU_prior": 6, "P_TU_prior": 36,
-               "measurement_status": 1, "nis": 1, "estimator_phase": 2}  # fmt: skip
-    if kind != "pf":  # a Gaussian filter's recovery, on by default
-        outputs["estimator_recovery"] = 4
+    outputs = {
+        "x_TU_hat": 6,
+        "P_TU": 36,
+        "x_TU_prior": 6,
+        "P_TU_prior": 36,
+        "measurement_status": 1,
+        "nis": 1,
+        "estimator_phase": 2,
+        "estimator_recovery": 4,
+    }  # fmt: skip (the recovery, on by default)
     names = [system.get_output_port(i).get_name() for i in range(system.num_output_ports())]
     assert {n: system.GetOutputPort(n).size() for n in names} == outputs
     x_hat = system.GetOutputPort("x_TU_hat").get_index()

@@ -12,6 +12,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.particle_filter import (
+    TEMPERING_FLOOR,
     ParticleFilter,
     ParticleFilterParameters,
     Workspace,
@@ -26,6 +27,7 @@ from drake_uuv.models.particle_filter import (
     reweight,
     shrinkage_kernel,
     systematic_resample,
+    tempered,
     weigh,
     weighted_moments,
 )
@@ -62,6 +64,10 @@ def test_a_defensive_draw_is_a_weighted_sample_of_the_same_gaussian(widening):
     assert np.linalg.norm(P - P0) < 5.0 * math.sqrt(2.0 / n_eff) * np.linalg.norm(P0)
     # Its draws reach κ times further: the spread of the unweighted cloud.
     assert_allclose(np.cov(particles), widening * P0, atol=5.0 * math.sqrt(2.0 / count) * widening)
+
+
+def _size(log_weights):
+    return effective_sample_size(normalised(log_weights))
 
 
 def test_a_defensive_draw_without_widening_is_the_plain_draw():
@@ -274,3 +280,34 @@ def test_bandwidth_is_the_scaled_gaussian_optimum():
 def test_bad_parameters_raise(kwargs, message):
     with pytest.raises(ValueError, match=message):
         ParticleFilterParameters(**kwargs)
+
+
+def test_tempering_keeps_the_floor_with_the_largest_power_of_the_likelihood():
+    """Closed form of :func:`tempered`: a likelihood that leaves about one particle is raised
+    to the largest power λ whose posterior keeps ``TEMPERING_FLOOR`` particles' worth (the
+    result is the prior plus λ times the log likelihood, normalised; a little more than λ
+    keeps fewer); a posterior above the floor, and a prior below it, are left alone."""
+    rng = np.random.default_rng(3)
+    prior = -np.log(rng.uniform(1.0, 2.0, 4000))
+    likelihood = -0.5 * (rng.normal(size=4000) / 0.002) ** 2  # a sharp one
+    plain = prior + likelihood
+    plain -= np.log(np.sum(np.exp(plain - plain.max()))) + plain.max()
+    assert _size(plain) < 0.6 * TEMPERING_FLOOR  # Bayes keeps about a dozen
+    out = tempered(prior, plain)
+    power, shift = np.polyfit(likelihood, out - prior, 1)
+    assert_allclose(out - prior, power * likelihood + shift, atol=1e-8)
+    assert 0.0 < power < 1.0
+    assert TEMPERING_FLOOR <= _size(out) <= TEMPERING_FLOOR * (1.0 + 1e-6)
+    assert _size(prior + 1.001 * power * likelihood) < TEMPERING_FLOOR
+    assert np.exp(out).sum() == pytest.approx(1.0, rel=1e-12)
+    # Above the floor: Bayes' rule, the same array.
+    mild = prior - 0.5 * (rng.normal(size=4000) / 10.0) ** 2
+    assert tempered(prior, mild) is mild
+    # A prior below the floor: Bayes' rule too (tempering could not restore it).
+    narrow = prior.copy()
+    narrow[:5] += 60.0
+    assert tempered(narrow, plain) is plain
+    # A particle of zero prior weight keeps none.
+    dead = prior.copy()
+    dead[0] = -np.inf
+    assert tempered(dead, plain)[0] == -np.inf

@@ -10,7 +10,13 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from drake_uuv.models import particle_advance, particle_kernels, particle_random
 from drake_uuv.models.motion import double_integrator, process_noise_covariance
-from drake_uuv.models.particle_filter import ParticleFilterParameters, pf_update
+from drake_uuv.models.particle_filter import (
+    TEMPERING_FLOOR,
+    ParticleFilterParameters,
+    effective_sample_size,
+    normalised,
+    pf_update,
+)
 from tests.estimators.cloud_host import reference_step
 
 T = 0.1
@@ -70,6 +76,10 @@ def advance(particles, log_weights, seeds, parameters, a_W, **options):
     return out, out_log, x, P
 
 
+def _size(log_weights):
+    return effective_sample_size(normalised(log_weights))
+
+
 def test_normals_are_standard_in_moments_and_tails_and_a_function_of_key_and_slot():
     keys = particle_random.cloud_keys(np.array([0.1, 0.2]))
     draws = particle_random.standard_normals(keys, 200_000, 0, 3)
@@ -124,49 +134,26 @@ def test_the_posterior_is_pf_update(sonars, correlated):
         assert_allclose(weights[run], np.exp(ref[3]), rtol=1e-12)
 
 
-def _effective_size(log_weights: np.ndarray) -> float:
-    w = np.exp(log_weights - log_weights.max())
-    return w.sum() ** 2 / (w * w).sum()
-
-
-def test_a_posterior_that_keeps_too_few_particles_is_tempered_to_the_floor():
-    """A wide cloud meets precise ranges: Bayes' rule keeps a handful of particles. The update
-    keeps the prior times the likelihood to the largest power λ < 1 that leaves
-    ``TEMPERING_FLOOR`` particles' worth (the numpy Bayes rule's likelihood, raised to λ),
-    its moments those weights' and its NIS the plain update's."""
-    floor = particle_kernels.TEMPERING_FLOOR
-    particles, log_weights = cloud(1, 3000, spread=2.0)
-    z, used, q_s = ranges(1)
+def test_a_posterior_that_keeps_too_few_particles_is_tempered_as_the_numpy_update():
+    """A wide cloud meets precise ranges: Bayes' rule keeps about one particle. The kernel
+    tempers it as the numpy update does (:func:`~drake_uuv.models.particle_filter.tempered`,
+    tested in closed form on its own): the same log weights, to rounding, keeping the floor's
+    worth of particles; a prior already below the floor is left to Bayes' rule in both."""
+    floor = TEMPERING_FLOOR
+    particles, log_weights = cloud(2, 3000, spread=2.0)
+    log_weights[1, :10] += 50.0  # run 1: ten particles hold the prior's weight
+    z, used, q_s = ranges(2)
     R = np.diag([1e-4, 1e-4])
-    x, P, nis, log_post, weights = posterior(particles, log_weights, z, used, q_s, R[None])
-    ref = pf_update(particles[0].T, log_weights[0], z[0], q_s[0], R, (0, 1))
-    assert _effective_size(ref[3]) < 3.0  # plain Bayes keeps about one particle
-    likelihood = ref[3] - log_weights[0]
-    # The tempered log weights are the prior's plus λ times the likelihood (up to a constant).
-    power, shift = np.polyfit(likelihood, log_post[0] - log_weights[0], 1)
-    assert_allclose(log_post[0] - log_weights[0], power * likelihood + shift, atol=1e-8)
-    assert 0.0 < power < 1.0
-    assert floor <= _effective_size(log_post[0]) <= floor * (1.0 + 1e-6)
-    # λ is the largest such power: a little more keeps fewer.
-    assert _effective_size(log_weights[0] + power * 1.001 * likelihood) < floor
-    assert weights[0] == pytest.approx(np.exp(log_post[0]), rel=1e-12)
-    w = weights[0]
-    mean = w @ particles[0]
-    assert_allclose(x[0], mean, rtol=1e-10)
-    assert_allclose(P[0], (particles[0] - mean).T @ ((particles[0] - mean) * w[:, None]), rtol=1e-9)
-    assert nis[0] == pytest.approx(ref[2], rel=1e-10)
-
-
-def test_a_prior_below_the_floor_is_left_to_bayes_rule():
-    """Tempering cannot restore a prior that already keeps fewer particles than the floor:
-    its update is the plain Bayes rule."""
-    particles, log_weights = cloud(1, 3000, spread=2.0)
-    log_weights[0, :10] += 50.0  # ten particles hold the prior's weight
-    z, used, q_s = ranges(1)
-    R = np.diag([1e-4, 1e-4])
-    *_, log_post, _ = posterior(particles, log_weights, z, used, q_s, R[None])
-    ref = pf_update(particles[0].T, log_weights[0], z[0], q_s[0], R, (0, 1))
-    assert_allclose(log_post[0], ref[3], rtol=1e-12, atol=1e-9)
+    x, P, nis, log_post, weights = posterior(
+        particles, log_weights, z, used, q_s, np.tile(R, (2, 1, 1))
+    )
+    for run in range(2):
+        ref = pf_update(particles[run].T, log_weights[run], z[run], q_s[run], R, (0, 1))
+        assert_allclose(log_post[run], ref[3], rtol=1e-9, atol=1e-9)
+        assert_allclose(x[run], ref[0], rtol=1e-10, atol=1e-12)
+        assert nis[run] == pytest.approx(ref[2], rel=1e-10)
+    assert floor <= _size(log_post[0]) <= floor * (1.0 + 1e-6)
+    assert _size(log_post[1]) < floor
 
 
 def test_without_a_range_or_not_live_the_weights_stand():
