@@ -69,12 +69,17 @@ class BatchResult:
         }
 
 
+#: An integer signal's value where a stopped run logged no number (its float signals: NaN).
+NO_VALUE = -1
+
+
 def log_from_loggers(built: UuvDiagram, context: Context, steps: int) -> dict[str, np.ndarray]:
     """The loggers' columns as the named per-step arrays of a batch's log.
 
     One array per logged signal (:mod:`drake_uuv.signals`), keyed by its name, shaped
     ``(B, N, *shape)``: run i's row k the value at step k shaped as the signal's ``shape``
-    (scalars as ``(B, N)``), plus ``k`` and ``time`` ``(N,)``.
+    (scalars as ``(B, N)``), plus ``k`` and ``time`` ``(N,)``. After a run's stop its rows
+    are NaN, and an integer signal's (a status code) :data:`NO_VALUE`.
     """
     B = built.batch_size
     log: dict[str, np.ndarray] = {"k": np.arange(steps)}
@@ -88,7 +93,9 @@ def log_from_loggers(built: UuvDiagram, context: Context, steps: int) -> dict[st
             data = np.vstack([data, np.full((steps - len(data), data.shape[1]), np.nan)])
         shape = signal.shape if all(n > 0 for n in signal.shape) else (-1,)
         data = np.moveaxis(data.reshape(len(data), B, *shape), 1, 0).copy()
-        log[name] = data.astype(np.int8) if signal.integer else data
+        if signal.integer:  # a code; NO_VALUE where a stopped run's row holds no number
+            data = np.where(np.isnan(data), NO_VALUE, data).astype(np.int8)
+        log[name] = data
     return log
 
 

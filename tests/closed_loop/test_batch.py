@@ -2,11 +2,13 @@
 failing run leaves the others untouched."""
 
 import re
+import warnings
 
 import numpy as np
 import pytest
 
 from drake_uuv import ClosedLoopSimulation, load_scenario
+from drake_uuv.simulation import NO_VALUE
 
 SHORT = ["steps=60", "steady_state_start=20"]
 #: Configurations whose every system steps a batch (the shipped slots' variants).
@@ -171,7 +173,12 @@ def test_a_batch_whose_runs_all_fail_is_reported_with_full_length_logs() -> None
         context = estimator.GetMyMutableContextFromRoot(root)
         context.SetDiscreteState(0, np.full(12, np.nan))
 
-    batch = simulation.run_batch([1, 2], prepare=spoil_all)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no NaN is cast to a status code
+        batch = simulation.run_batch([1, 2], prepare=spoil_all)
     assert all(f.startswith("estimator output is not finite") for f in batch.failures)
+    # The status codes after the stop: NO_VALUE, not a cast NaN.
+    assert (batch.log["measurement_status"][:, 1:] == NO_VALUE).all()
+    assert (batch.log["sonar_status"][:, 1:] == NO_VALUE).all()
     assert batch.log["p_WU"].shape == (2, 60, 3) and len(batch.log["time"]) == 60
     assert np.isnan(batch.metrics["position_rmse"]).all()
