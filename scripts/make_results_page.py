@@ -107,11 +107,15 @@ def _relative_speed_growth() -> list[tuple[int, float]]:
     return [(k, float(np.sqrt(np.mean(speeds[:, k] ** 2)))) for k in ks]
 
 
-def _relative(path: Path) -> str:
+def _relative(path: Path, work: Path | None = None) -> str:
+    """``path`` relative to the repository; outside it, relative to ``work`` (the --work
+    folder, named as such: a machine's own folders do not belong on the pages)."""
     try:
         return str(path.resolve().relative_to(ROOT))
     except ValueError:
-        return str(path)
+        if work is None:
+            return str(path)
+        return f"{path.resolve().relative_to(work.resolve())} in the --work folder"
 
 
 def _g(value: float | None, fmt: str = ".3g") -> str:
@@ -418,7 +422,7 @@ For contrast, Algorithm 1 (`random`) and a fixed attitude:
 
 RMSEs are √(mean over runs and steady-state steps of the squared error); intervals by
 percentile bootstrap over runs; fractions with Wilson intervals
-(`{_relative(args.work / "montecarlo" / "summary.json")}`).
+(`{_relative(args.work / "montecarlo" / "summary.json", args.work)}`).
 
 ![bands](figures/bands.png)
 
