@@ -108,14 +108,14 @@ def _relative_speed_growth() -> list[tuple[int, float]]:
 
 
 def _relative(path: Path, work: Path | None = None) -> str:
-    """``path`` relative to the repository; outside it, relative to ``work`` (the --work
-    folder, named as such: a machine's own folders do not belong on the pages)."""
+    """``path`` as a code span, relative to the repository; outside it, relative to ``work``
+    (the --work folder, named as such: a machine's own folders do not belong on the pages)."""
     try:
-        return str(path.resolve().relative_to(ROOT))
+        return f"`{path.resolve().relative_to(ROOT)}`"
     except ValueError:
         if work is None:
-            return str(path)
-        return f"{path.resolve().relative_to(work.resolve())} in the --work folder"
+            return f"`{path}`"
+        return f"`{path.resolve().relative_to(work.resolve())}` in the `--work` folder"
 
 
 def _g(value: float | None, fmt: str = ".3g") -> str:
@@ -422,7 +422,7 @@ For contrast, Algorithm 1 (`random`) and a fixed attitude:
 
 RMSEs are √(mean over runs and steady-state steps of the squared error); intervals by
 percentile bootstrap over runs; fractions with Wilson intervals
-(`{_relative(args.work / "montecarlo" / "summary.json", args.work)}`).
+({_relative(args.work / "montecarlo" / "summary.json", args.work)}).
 
 ![bands](figures/bands.png)
 
