@@ -11,6 +11,7 @@ from numba import njit
 
 from drake_uuv.models.particle_kernels import (
     CONTRACT,
+    effective_sample_size,
     moments_into,
     normalise_into,
     psd_factor,
@@ -298,10 +299,7 @@ def _advance_run(
     zero = np.zeros(6)
     shift = np.empty(6)
     shrink = math.sqrt(1.0 - bandwidth * bandwidth)
-    squares = 0.0
-    for i in range(n):
-        squares += weights[i] * weights[i]
-    resample = 1.0 / squares < resample_threshold * n
+    resample = effective_sample_size(weights) < resample_threshold * n
     if resample:
         _prepare_resampling(
             source, drawn, use_drawn, weights, have_moments, mean, cov, key, bandwidth, L, shift,

@@ -282,14 +282,15 @@ def weigh_into(
             e = ranges[i, s] - z[s]
             out[i] = log_weights[i] - half * e * e
     _normalise_log_into(out, posterior)
-    if _effective_size(posterior) < TEMPERING_FLOOR:
+    if effective_sample_size(posterior) < TEMPERING_FLOOR:
         _temper_into(log_weights, out, posterior)
     return nis
 
 
-@njit
-def _effective_size(weights: np.ndarray) -> float:  # pragma: no cover - compiled
-    """``1 / Σ w²`` of normalised weights (NaN weights: NaN)."""
+@njit(fastmath=CONTRACT)
+def effective_sample_size(weights: np.ndarray) -> float:  # pragma: no cover - compiled
+    """``1 / Σ w²`` of normalised weights (NaN weights: NaN): the measurement update's
+    tempering test and the periodic updates' resampling test."""
     squares = 0.0
     for i in range(weights.shape[0]):
         squares += weights[i] * weights[i]
