@@ -7,6 +7,10 @@ The names below are imported on first use (PEP 562), so that ``import drake_uuv.
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from drake_uuv.kernel_cache import refresh_kernel_cache
+
+refresh_kernel_cache()  # before any kernel module loads its cache (see drake_uuv.kernel_cache)
+
 if TYPE_CHECKING:  # for type checkers and editors; "X as X" marks a re-export
     from drake_uuv.diagram import UuvDiagram as UuvDiagram
     from drake_uuv.diagram import make_uuv_diagram as make_uuv_diagram

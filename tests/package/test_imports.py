@@ -23,7 +23,7 @@ ROOT = "__init__"  # the package's own __init__: the public facade
 
 # Top-level modules and packages, lowest layer first.
 LAYERS: list[set[str]] = [
-    {"scenario", "io", "models"},  # configuration, files, plain numpy math
+    {"scenario", "io", "models", "kernel_cache"},  # configuration, files, plain numpy math
     {  # one Drake system per module (and their helpers)
         "primitives",
         "plants",
