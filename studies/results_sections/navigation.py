@@ -107,6 +107,76 @@ def acceptance(n: dict[str, dict[str, Any]], plant: str) -> tuple[str, bool]:
     )
 
 
+def _lost(n: dict[str, dict[str, Any]], names: list[str]) -> str:
+    """``name (k/runs)`` of each of ``names`` with a diverged run, or "none"."""
+    lost = [f"`{m}` ({len(n[m]['diverged_seeds'])}/{n[m]['runs']})" for m in names
+            if m in n and n[m]["diverged_seeds"]]  # fmt: skip
+    return ", ".join(lost) or "none"
+
+
+def _nees(n: dict[str, dict[str, Any]], name: str) -> str:
+    """``x (in band | above | below)``: one row's mean NEES against its band."""
+    if name not in n:
+        return "not run"
+    x = n[name]
+    nees = x["summary"]["nees_mean"]
+    if nees is None:
+        return "none (no run completed)"
+    where = "in band" if x["nees_in_band"] else ("above" if nees > x["band"][1] else "below")
+    return f"{_g(nees)} ({where})"
+
+
+def findings(n: dict[str, dict[str, Any]]) -> str:
+    """The source tables' reading, every figure taken from ``n`` (the rows' numbers)."""
+
+    def rows(law: str, model: str, sources=tuple(SOURCES)) -> list[str]:
+        names = [f"{law}-{source}-{e}-{model}" for source in sources for e in ESTIMATORS]
+        return [name for name in names if name in n]
+
+    lqr_modelled = rows("lqr", "modelled")
+    pf = [name for name in lqr_modelled if name.endswith("-pf-modelled")]
+    pf_consistent = sum(n[name]["nees_in_band"] for name in pf)
+    pf_worst = max((n[name]["position_ratio"][0] for name in pf), default=math.nan)
+
+    def lost_under_paper(source: str) -> str:
+        counts = []
+        for e in ESTIMATORS:
+            modelled, ideal = f"paper-{source}-{e}-modelled", f"paper-{source}-{e}-ideal"
+            if modelled in n and ideal in n:
+                counts.append(
+                    f"{ESTIMATOR_LABELS[e]} {len(n[modelled]['diverged_seeds'])} "
+                    f"({len(n[ideal]['diverged_seeds'])})"
+                )
+        return ", ".join(counts) or "not run"
+
+    def nees_of(row: str) -> str:
+        return ", ".join(f"{ESTIMATOR_LABELS[e]} {_nees(n, row.format(e))}" for e in ESTIMATORS)
+
+    runs = next(iter(n.values()))["runs"] if n else 0
+    return f"""**What the tables show.** Under the LQR law (commands of at most 3 m/s²), the rows
+with the error model that lose a run: {_lost(n, lqr_modelled)}. The particle filter with its
+model has its mean NEES in band in {pf_consistent} of {len(pf)} rows, and its position RMSE is
+at most {_g(pf_worst)}× the extended bound. With no navigation error at all (the error-free
+row) the mean NEES is: {nees_of("lqr-ideal-{}-modelled")}; a filter out of band there misses
+the ranges' geometry, not the navigation (the EKF's first-order linearisation of the ranges;
+`Ekf.second_order` has the consistent options). Ignoring the timing (`ideal` with late pings or
+late ranges), the rows that lose a run: {_lost(n, rows("lqr", "ideal", ("pings", "latency")))};
+a range taken at the tick when it was measured a quarter of a second earlier is off by the
+relative motion meanwhile.
+
+Under the paper's tracking law, the runs lost of {runs} with the error model (and without it)
+are, with AHRS noise: {lost_under_paper("ahrs")}; with sonar 2 pinging late:
+{lost_under_paper("pings")}. The paper assumes a perfect attitude and a single ping instant,
+and its law's commands are hundreds of m/s² at the start: an attitude error of half a degree
+turns them into metres per second squared of unmodelled motion, and sonars pinging apart see
+the vehicle displaced by metres between their pings. The error model widens the filter by what
+it knows of this (the commanded acceleration's error as process noise), but cannot give back
+the information the motion destroyed. With a compass bias under this law the mean NEES with
+the error model is: {nees_of("paper-compass-{}-modelled")}; the bias's floor, computed at the
+estimate, does not cover its effect through the law's large relative motions.
+"""
+
+
 def nees_figure(n: dict[str, dict[str, Any]], path: Path) -> None:
     """Mean NEES per error source, estimator and error model, one panel per tracking law,
     with the band of the source rows' sample size."""
@@ -262,10 +332,13 @@ second order and with its sign ambiguous around q\\* (z = 0). With that plan the
 lost 8 to 17 of 40 runs per row, on both plants, and with perfect navigation and sonar timing
 too, where the paper's KF and the particle filter lost none (`--set
 attitude.h_frequency=0.16666666666666666` runs it again). Rows with a diverged run now:
-{lost or "none"}. With the error model, the runs lost on the kinematic plant are
-{lost_by or "none"}: in the first 40 steps of seed 31 the linear start (every
-filter's, before the hand-over) wanders off, and the kinematic plant, which has no top speed,
-follows it at up to 6 m/s; the vehicle (top speed 0.76 m/s) keeps that seed. Other swings lose
+{lost or "none"}; with the error model, the runs lost on the kinematic plant:
+{lost_by or "none"}. Before the loop was made cautious (`tracking.hold_until_handover`: at
+rest while the estimator is in its linear start; `tracking.max_speed`: the vehicle's top
+speed on any plant), seed 31 was lost there by the paper's KF, the UKF and the particle
+filter: in its first 40 steps the linear start wandered off, and the kinematic plant, which
+has no top speed, followed it at up to 6 m/s; the vehicle (top speed 0.76 m/s) kept it. Other
+swings lose
 other early seeds (seeds 0–39; the paper's KF: 6 at 1/36, 2 at 1/40, none at 1/56 or 1/64; the
 EKF: none at 1/56, 1 at 1/64; the UKF: 1 at 1/56, 3 at 1/64): 1/48 was chosen on the rate
 budget and seeds 0–19, before seeds 20–39 ran.
@@ -283,24 +356,4 @@ diverged. The error-free row has one model (`=` where it would repeat).
 
 {tables}
 
-**What the tables show.** Under the LQR law (commands of at most 3 m/s²) every estimator with
-its error model survives every source alone and all of them together; the particle filter
-stays consistent and within a few per cent of the extended bound throughout. The EKF is
-overconfident in this loop whatever the navigation (its NEES is high in the error-free row
-too), so the navigation is not what it misses, and its first-order linearisation of the
-ranges is the likely cause; the UKF and the particle filter with the same model are
-consistent. Ignoring the timing
-(`ideal` with late pings or late ranges) is what diverges there: a range taken at the tick
-when it was measured a quarter of a second earlier is off by the relative motion meanwhile.
-
-Under the paper's tracking law, AHRS noise and a ping offset diverge runs of every estimator,
-with its error model or without, as the paper's assumption of a perfect attitude and a single
-ping instant hides. The law's commands are hundreds of m/s² at the start: an attitude error of
-half a degree turns them into metres per second squared of unmodelled motion, and sonars
-pinging apart see the vehicle displaced by metres between their pings. The error model widens
-the filter by what it knows of this (the commanded acceleration's error as process noise), but
-cannot give back the information the motion destroyed. The compass bias leaves the filters
-overconfident under this law (NEES above the band with the floor added): the floor, computed
-at the estimate, does not cover the bias's effect through the law's large relative motions;
-that is left to investigate.
-"""
+{findings(n)}"""
