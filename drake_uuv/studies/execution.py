@@ -44,6 +44,13 @@ _PR_SET_PDEATHSIG = 1  # <sys/prctl.h>
 # seeds (little lost on interruption, and a worker runs a chunk as batches of runs), at least
 # one.
 _CHUNKS_PER_SLOT = 2
+# A pool of n workers takes n times this many tasks, then a fresh pool the next. pydrake 1.51
+# never frees a LeafSystem written in Python: the callbacks it stores in C++ (a port's calc,
+# an event's handler) hold the system, a cycle Python's collector cannot see
+# (RobotLocomotion/drake issues 23930 and 24162). So each simulation a worker builds stays
+# in its memory (100-300 MB for a late-range particle row at its batch size), and a
+# navigation study's worker, building one per row, grew past 11 GB and was killed.
+TASKS_PER_WORKER = 8
 _MAX_CHUNK = 250
 
 
@@ -81,7 +88,7 @@ def _die_with_parent() -> None:
 
 
 def execute_local(tasks: list[Task], workers: int, on_done: OnDone) -> None:
-    """Runs ``tasks`` in this process (``workers`` ≤ 1) or a forked process pool.
+    """Runs ``tasks`` in this process (``workers`` ≤ 1) or a process pool of ``workers``.
 
     ``on_done(index, chunk)`` is called in this process as each task finishes.
     """
@@ -92,19 +99,36 @@ def execute_local(tasks: list[Task], workers: int, on_done: OnDone) -> None:
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
-    # fork: the workers inherit the imported pydrake (≈1.2 s per process otherwise).
+    # fork: the workers inherit the imported pydrake (≈1.2 s per process otherwise). A pool
+    # takes TASKS_PER_WORKER tasks a worker, then a fresh one forked from this process takes
+    # the next, while the retired one finishes what it holds: at most ``workers`` tasks run.
     context = multiprocessing.get_context("fork")
-    pool = ProcessPoolExecutor(
-        max_workers=workers, mp_context=context, initializer=_die_with_parent
-    )
+    queue = list(reversed(tasks))
+    pending: dict = {}
+    retired: list = []
+    pool, given = None, 0
     try:
-        pending = {pool.submit(run_task, task) for task in tasks}
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+        while queue or pending:
+            while queue and len(pending) < workers:
+                if pool is None or given >= workers * TASKS_PER_WORKER:
+                    if pool is not None:
+                        pool.shutdown(wait=False)
+                        retired.append(pool)
+                    pool = ProcessPoolExecutor(
+                        max_workers=workers, mp_context=context, initializer=_die_with_parent
+                    )
+                    given = 0
+                pending[pool.submit(run_task, queue.pop())] = pool
+                given += 1
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
+                del pending[future]
                 on_done(*future.result())
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        for future in pending:
+            future.cancel()
+        for old in [*retired, *([pool] if pool is not None else [])]:
+            old.shutdown(wait=True, cancel_futures=True)
 
 
 def connect(scheduler: str) -> Any:

@@ -1,13 +1,15 @@
 """Running studies: the same numbers whatever the backend or chunking; resume; bad requests."""
 
+import collections
 import math
+import os
 
 import numpy as np
 import pytest
 
 from drake_uuv.simulation import ClosedLoopSimulation
-from drake_uuv.studies import MonteCarloError, completed_seeds, run_study
-from drake_uuv.studies.execution import automatic_chunk_size, chunks, connect
+from drake_uuv.studies import MonteCarloError, completed_seeds, execution, run_study
+from drake_uuv.studies.execution import automatic_chunk_size, chunks, connect, execute_local
 from tests.studies.study_helpers import outputs
 
 RUNS = 6
@@ -171,3 +173,22 @@ def test_chunks_cover_the_seeds_in_order():
 )
 def test_automatic_chunks_are_about_two_per_slot_and_at_most_250(total, slots, size):
     assert automatic_chunk_size(total, slots) == size
+
+
+def _worker_pid(task: int) -> tuple[int, int]:
+    return task, os.getpid()
+
+
+def test_a_pool_is_replaced_after_its_share_of_tasks(monkeypatch):
+    # A worker's memory grows with every simulation it builds (pydrake never frees a Python
+    # system), so each pool of 2 workers takes 2 * 2 tasks and a fresh pool the next.
+    monkeypatch.setattr(execution, "TASKS_PER_WORKER", 2)
+    monkeypatch.setattr(execution, "run_task", _worker_pid)  # inherited by the forked workers
+    done: dict[int, int] = {}
+    execute_local(list(range(12)), 2, done.__setitem__)
+    assert sorted(done) == list(range(12))  # every task once
+    # Tasks 0-3 went to the first pool, 4-7 to the second, 8-11 to the third: no worker ran
+    # tasks of two pools.
+    pools = [{done[t] for t in range(first, first + 4)} for first in (0, 4, 8)]
+    assert not (pools[0] & pools[1] or pools[1] & pools[2] or pools[0] & pools[2])
+    assert max(collections.Counter(done.values()).values()) <= 4
