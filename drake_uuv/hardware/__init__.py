@@ -3,6 +3,7 @@ attitude, tracking) and the vehicle half (plant, target, sonars, navigation), bu
 scenario, talking over Drake's LCM systems (:mod:`.channels` documents the channels)."""
 
 from drake_uuv.hardware.channels import (
+    INITIALIZED,
     ONBOARD,
     READY,
     VEHICLE,
@@ -15,6 +16,7 @@ from drake_uuv.hardware.halves import Half, LcmTimeout
 from drake_uuv.hardware.loop import run_lcm, run_onboard, run_vehicle
 
 __all__ = [
+    "INITIALIZED",
     "ONBOARD",
     "READY",
     "VEHICLE",

@@ -23,6 +23,10 @@ other):
   acceleration in the body frame [m/s²].
 - ``DRAKE_UUV_READY`` (onboard → vehicle, an empty ``lcmt_scope``): the onboard half is
   listening; the vehicle waits for it before its first message.
+- ``DRAKE_UUV_INITIALIZED`` (onboard → vehicle, an empty ``lcmt_scope``): the onboard half
+  has initialized from the vehicle's first messages; the vehicle waits for it before step 0's
+  (sent sooner, both could reach the onboard half before it latched the first, and it would
+  then wait for a third that never comes).
 
 The steps go in lockstep: the vehicle sends one message on each of its channels before the
 loop (its state when the onboard half initializes) and then one each step k; the onboard half
@@ -44,6 +48,8 @@ ONBOARD = ("estimator", "attitude_generator", "tracking_controller")
 VEHICLE = ("uuv", "navigation", "target", "sonar")
 #: The channel on which the onboard half says it is listening.
 READY = "DRAKE_UUV_READY"
+#: The channel on which the onboard half says it has initialized.
+INITIALIZED = "DRAKE_UUV_INITIALIZED"
 #: The only system of the vehicle half that may read the onboard half: the plant, whose
 #: update applies the step's commands (a system whose outputs the onboard half reads in the
 #: same step could not be answered in lockstep).

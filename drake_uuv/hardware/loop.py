@@ -25,7 +25,7 @@ from pydrake.lcm import DrakeLcm
 
 from drake_uuv.diagnostics import run_warnings
 from drake_uuv.diagram import make_systems
-from drake_uuv.hardware.channels import READY, check_url
+from drake_uuv.hardware.channels import INITIALIZED, READY, check_url
 from drake_uuv.hardware.halves import Half, LcmTimeout
 from drake_uuv.metrics import run_metrics
 from drake_uuv.models.tracking_laws import closed_loop_eigenvalues
@@ -112,20 +112,27 @@ def run_lcm(scenario: Scenario, url: str = "memq://", timeout: float = 10.0) -> 
 def run_vehicle(
     scenario: Scenario, url: str, timeout: float = 30.0, progress: Callable | None = None
 ) -> dict[str, np.ndarray]:
-    """The vehicle half alone over ``url``: waits for the onboard half's ready message, then
-    steps with it. Returns its log (the truth, the navigation, the sonars)."""
+    """The vehicle half alone over ``url``: waits for the onboard half's ready message, sends
+    its first messages, waits for the onboard half to have initialized from them, then steps
+    with it. Returns its log (the truth, the navigation, the sonars)."""
     lcm = DrakeLcm(check_url(url))
     halves, signals = _halves(scenario, lcm, ("vehicle",), timeout)
     vehicle = halves["vehicle"]
-    ready = []
-    lcm.Subscribe(READY, lambda data: ready.append(True))
-    deadline = time.monotonic() + timeout
-    while not ready:
-        if time.monotonic() > deadline:
-            raise LcmTimeout(f"vehicle: no onboard half on {READY} within {timeout:g} s")
-        lcm.HandleSubscriptions(50)
+    heard: dict[str, bool] = {READY: False, INITIALIZED: False}
+    for channel in heard:
+        lcm.Subscribe(channel, lambda data, channel=channel: heard.__setitem__(channel, True))
+
+    def wait_for(channel: str) -> None:
+        deadline = time.monotonic() + timeout
+        while not heard[channel]:
+            if time.monotonic() > deadline:
+                raise LcmTimeout(f"vehicle: no onboard half on {channel} within {timeout:g} s")
+            lcm.HandleSubscriptions(50)
+
+    wait_for(READY)
     vehicle.publish()
     vehicle.initialize()
+    wait_for(INITIALIZED)  # step 0's messages only once the first ones are latched
     rows = []
     for k in range(scenario.steps):
         if k:
@@ -139,25 +146,29 @@ def run_vehicle(
 @on_one_blas_thread  # as ClosedLoopSimulation steps: the same bits
 def run_onboard(scenario: Scenario, url: str, timeout: float = 30.0) -> dict[str, np.ndarray]:
     """The onboard half alone over ``url``: says it is ready (``DRAKE_UUV_READY``, again
-    until the vehicle answers), initializes from the vehicle's first messages and answers
-    each step. Returns its log (the estimate, the commands, and what it received)."""
+    until the vehicle answers), initializes from the vehicle's first messages, says so
+    (``DRAKE_UUV_INITIALIZED``, again until step 0's messages come) and answers each step.
+    Returns its log (the estimate, the commands, and what it received)."""
     lcm = DrakeLcm(check_url(url))
     halves, signals = _halves(scenario, lcm, ("onboard",), timeout)
     onboard = halves["onboard"]
     last = [0.0]
 
-    def announce() -> None:
-        if time.monotonic() - last[0] > 0.1:
-            lcm.Publish(READY, lcmt_scope().encode())
-            last[0] = time.monotonic()
+    def announcer(channel: str) -> Callable[[], None]:
+        def announce() -> None:  # again every 0.1 s until the vehicle's next message
+            if time.monotonic() - last[0] > 0.1:
+                lcm.Publish(channel, lcmt_scope().encode())
+                last[0] = time.monotonic()
 
-    onboard.receive(None, waiting=announce)
+        return announce
+
+    onboard.receive(None, waiting=announcer(READY))
     onboard.initialize()
     rows = []
     for k in range(scenario.steps):
         if k:
             onboard.advance(k)
-        onboard.receive(k)
+        onboard.receive(k, waiting=None if k else announcer(INITIALIZED))
         onboard.publish()
         rows.append(onboard.sample(received=True))
     return _log(rows, signals, scenario.time_step)
