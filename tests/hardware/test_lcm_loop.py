@@ -134,8 +134,8 @@ def test_two_processes_give_the_run_bit_for_bit(tmp_path, namespace) -> None:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
 
     def half(side: str) -> subprocess.Popen:
-        # Each half waits this long for the other's first message; it covers compiling the
-        # kernels in a cold cache on a loaded machine (60 s once was not enough in CI).
+        # Each half waits this long for the other's messages: enough to compile the kernels
+        # in a cold cache on a loaded machine.
         command = [sys.executable, "-m", "drake_uuv.cli", side, "--lcm", url, "--timeout",
                    "240", "--out", str(tmp_path / side), *_sets(SHORT)]  # fmt: skip
         return subprocess.Popen(["ip", "netns", "exec", namespace, *command], env=env,
