@@ -104,31 +104,29 @@ def execute_local(tasks: list[Task], workers: int, on_done: OnDone) -> None:
     # the next, while the retired one finishes what it holds: at most ``workers`` tasks run.
     context = multiprocessing.get_context("fork")
     queue = list(reversed(tasks))
-    pending: dict = {}
-    retired: list = []
-    pool, given = None, 0
+    pending: set = set()
+    pools: list = []  # the newest takes new tasks; the others finish theirs
+    given = 0
     try:
         while queue or pending:
             while queue and len(pending) < workers:
-                if pool is None or given >= workers * TASKS_PER_WORKER:
-                    if pool is not None:
-                        pool.shutdown(wait=False)
-                        retired.append(pool)
-                    pool = ProcessPoolExecutor(
-                        max_workers=workers, mp_context=context, initializer=_die_with_parent
+                if not pools or given >= workers * TASKS_PER_WORKER:
+                    if pools:
+                        pools[-1].shutdown(wait=False)
+                    pools.append(
+                        ProcessPoolExecutor(
+                            max_workers=workers, mp_context=context, initializer=_die_with_parent
+                        )
                     )
                     given = 0
-                pending[pool.submit(run_task, queue.pop())] = pool
+                pending.add(pools[-1].submit(run_task, queue.pop()))
                 given += 1
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
-                del pending[future]
                 on_done(*future.result())
     finally:
-        for future in pending:
-            future.cancel()
-        for old in [*retired, *([pool] if pool is not None else [])]:
-            old.shutdown(wait=True, cancel_futures=True)
+        for pool in pools:
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 def connect(scheduler: str) -> Any:

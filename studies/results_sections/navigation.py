@@ -241,11 +241,7 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
         realistic_table.append(_realistic_row(variant.name, n[variant.name]))
 
     swing = 2 * realistic.time_step / realistic.attitude.h_frequency  # h(k)'s period [s]
-    lost = ", ".join(
-        f"{v.name} ({len(n[v.name]['diverged_seeds'])}/{n[v.name]['runs']})"
-        for v in realistic_variants()
-        if n[v.name]["diverged_seeds"]
-    )
+    lost = _lost(n, [v.name for v in realistic_variants()])
     # seed -> the estimators (with their error model) that lost it on the kinematic plant
     kinematic_lost: dict[int, list[str]] = {}
     for estimator in ESTIMATORS:
@@ -332,16 +328,15 @@ second order and with its sign ambiguous around q\\* (z = 0). With that plan the
 lost 8 to 17 of 40 runs per row, on both plants, and with perfect navigation and sonar timing
 too, where the paper's KF and the particle filter lost none (`--set
 attitude.h_frequency=0.16666666666666666` runs it again). Rows with a diverged run now:
-{lost or "none"}; with the error model, the runs lost on the kinematic plant:
+{lost}; with the error model, the runs lost on the kinematic plant:
 {lost_by or "none"}. Before the loop was made cautious (`tracking.hold_until_handover`: at
 rest while the estimator is in its linear start; `tracking.max_speed`: the vehicle's top
 speed on any plant), seed 31 was lost there by the paper's KF, the UKF and the particle
 filter: in its first 40 steps the linear start wandered off, and the kinematic plant, which
-has no top speed, followed it at up to 6 m/s; the vehicle (top speed 0.76 m/s) kept it. Other
-swings lose
-other early seeds (seeds 0–39; the paper's KF: 6 at 1/36, 2 at 1/40, none at 1/56 or 1/64; the
-EKF: none at 1/56, 1 at 1/64; the UKF: 1 at 1/56, 3 at 1/64): 1/48 was chosen on the rate
-budget and seeds 0–19, before seeds 20–39 ran.
+has no top speed, followed it at up to 6 m/s; the vehicle (top speed 0.76 m/s) kept it.
+Other swings lose other early seeds (seeds 0–39; the paper's KF: 6 at 1/36, 2 at 1/40, none
+at 1/56 or 1/64; the EKF: none at 1/56, 1 at 1/64; the UKF: 1 at 1/56, 3 at 1/64): 1/48 was
+chosen on the rate budget and seeds 0–19, before seeds 20–39 ran.
 
 ### Each error source alone
 
