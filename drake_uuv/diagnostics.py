@@ -146,6 +146,6 @@ def _nees_message(nees: float, low: float, high: float, scenario: Scenario, vehi
             "estimator.vehicle_motion=navigation)"
         )
     return where + (
-        ": the estimator is overconfident here (docs/results.md compares the estimators' "
+        ": the estimator is overconfident here (docs/results/regimes.md compares the estimators' "
         "consistency by regime)"
     )
