@@ -261,6 +261,22 @@ def test_the_robustness_group_runs_every_shipped_scenario_and_a_fifth_on_the_veh
         assert rows[name].runs(1000) == 1000
 
 
+def test_the_robustness_group_runs_the_second_order_ekf_and_the_lqr_law_in_every_regime():
+    rows = {variant.name: variant for variant in GROUPS["robustness"].variants()}
+    regimes = ("paper", "lqr", "far", "noisy", "realistic-auv", "realistic-kinematic")
+    for regime in regimes:
+        for estimator in ("ekf", "ekf2", "ukf", "pf"):
+            assert f"robust-{regime}-{estimator}" in rows
+    ekf2 = load_scenario("paper", list(rows["robust-lqr-ekf2"].overrides))
+    assert (ekf2.estimator.second_order, ekf2.estimator.linearisation_correlation) == ("full", 7)
+    assert ekf2.tracking.reference_frame == "world" and ekf2.tracking.max_acceleration == 3
+    textbook = load_scenario("paper", list(rows["robust-lqr-ekf"].overrides))
+    assert textbook.estimator.second_order == "none"
+    far = load_scenario("far_standoff", list(rows["robust-far-ekf2"].overrides))
+    assert far.estimator.second_order == "full"
+    assert rows["robust-lqr-pf"].runs(1000) == 1000
+
+
 @pytest.mark.parametrize(
     ("scenario", "overrides", "share"),
     [
