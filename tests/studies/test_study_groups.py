@@ -53,7 +53,7 @@ def test_the_groups_in_order_and_the_paper_s_three_run_by_default():
 def test_every_variant_loads_and_variant_names_are_unique():
     variants = [v for group in GROUPS.values() for v in group.variants()]
     names = [variant.name for variant in variants]
-    assert len(names) == len(set(names)) == 103 + 136 + 20
+    assert len(names) == len(set(names)) == 103 + 136 + 29
     for variant in variants:
         # Raises ScenarioError if not.
         load_scenario(variant.scenario or "paper", list(variant.overrides))
