@@ -89,11 +89,8 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
             pairs.append(f"{regime} {_g(nees)} → {_g(nees2)}")
             if not in_band2:
                 short.append(f"`{regime}`")
-    terms = (
-        "it is in band in every regime"
-        if not short
-        else f"it stays out of band in {', '.join(short)}"
-    )
+    listed = " and ".join([", ".join(short[:-1]), short[-1]] if len(short) > 1 else short)
+    terms = f"it stays out of band in {listed}" if short else "it is in band in every regime"
     vehicle_runs = round(VEHICLE_SHARE * runs)
     cloud_runs = round(LARGE_CLOUD_SHARE * runs)
     cloud = f"{LARGE_CLOUD:,}".replace(",", " ")
