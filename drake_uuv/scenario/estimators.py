@@ -405,7 +405,12 @@ class MarginalizedParticleFilter(ParticleFilter):
     Paired over seeds 0-299 (paper): 1000 particles 1.029× the 5000-particle filter's RMSE
     (mean NEES 7.74: overconfident), 1.021× with ``particle_bandwidth_scale: 1.5`` (6.80); at
     1000 particles it resamples every step whether the threshold is 0.2 or 0.5 (the same
-    bits), so its cloud is impoverished, not its velocity's Kalman filter."""
+    bits), so its cloud is impoverished, not its velocity's Kalman filter. Paired over seeds
+    0-499, position RMSE over the 5000-particle filter's (paper; σ = 1 m): the marginalised
+    filter at 1000 particles 1.030 ± 0.004 and 1.022 ± 0.003, at 2000 1.009 ± 0.002 and
+    1.011 ± 0.004, the particle filter at 1000 1.025 ± 0.003 and 1.030 ± 0.009 (mean NEES at
+    1000: 6.9 and 6.7, overconfident; at 2000: 6.45 and 6.29). Within 2 % takes 2000 particles;
+    at 1000 the position's sampling, which both filters share, is the floor."""
 
 
 #: The estimator slot. The first member is the default of an untagged section.
