@@ -18,7 +18,7 @@ METRICS = ["failed", "final_position_error"]
 
 
 def result(
-    final: list[float], nees: float, failed: list[int] = (), ratio: float = 1.02
+    final: list[float], nees: float, failed: tuple[int, ...] = (), ratio: float = 1.02
 ) -> StudyResult:
     """A study of ``len(final)`` runs (seeds 0, 1, ...) with these final errors and mean NEES."""
     runs = len(final)
@@ -34,7 +34,7 @@ def result(
 
 
 def test_a_run_is_lost_when_stopped_or_ending_beyond_ten_metres():
-    r = result([0.5, 10.5, 3.0, math.nan, 9.9], 6.0, failed=[2])
+    r = result([0.5, 10.5, 3.0, math.nan, 9.9], 6.0, failed=(2,))
     # Seed 1 ends 10.5 m off, seed 2 was stopped, seed 3's final error is not a number.
     assert section_module.lost_seeds(r) == [1, 2, 3]
 
