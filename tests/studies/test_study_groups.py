@@ -53,7 +53,7 @@ def test_the_groups_in_order_and_the_paper_s_three_run_by_default():
 def test_every_variant_loads_and_variant_names_are_unique():
     variants = [v for group in GROUPS.values() for v in group.variants()]
     names = [variant.name for variant in variants]
-    assert len(names) == len(set(names)) == 103 + 136 + 29
+    assert len(names) == len(set(names)) == 103 + 136 + 35
     for variant in variants:
         # Raises ScenarioError if not.
         load_scenario(variant.scenario or "paper", list(variant.overrides))
@@ -261,11 +261,11 @@ def test_the_robustness_group_runs_every_shipped_scenario_and_a_fifth_on_the_veh
         assert rows[name].runs(1000) == 1000
 
 
-def test_the_robustness_group_runs_the_second_order_ekf_and_the_lqr_law_in_every_regime():
+def test_the_robustness_group_runs_the_consistency_options_and_the_lqr_law_in_every_regime():
     rows = {variant.name: variant for variant in GROUPS["robustness"].variants()}
     regimes = ("paper", "lqr", "far", "noisy", "realistic-auv", "realistic-kinematic")
     for regime in regimes:
-        for estimator in ("ekf", "ekf2", "ukf", "pf"):
+        for estimator in ("ekf", "ekf2", "ukf", "ukf2", "pf"):
             assert f"robust-{regime}-{estimator}" in rows
     ekf2 = load_scenario("paper", list(rows["robust-lqr-ekf2"].overrides))
     assert (ekf2.estimator.second_order, ekf2.estimator.linearisation_correlation) == ("full", 7)
@@ -275,6 +275,8 @@ def test_the_robustness_group_runs_the_second_order_ekf_and_the_lqr_law_in_every
     far = load_scenario("far_standoff", list(rows["robust-far-ekf2"].overrides))
     assert far.estimator.second_order == "full"
     assert rows["robust-lqr-pf"].runs(1000) == 1000
+    ukf2 = load_scenario("paper", list(rows["robust-paper-ukf2"].overrides))
+    assert ukf2.estimator.linearisation_correlation == 4
 
 
 @pytest.mark.parametrize(
