@@ -130,8 +130,8 @@ def _pairs(nees_of: dict[str, tuple[float, bool]], name: str) -> tuple[str, str]
             nees2, in_band2 = nees_of[row + "2"]
             regime = row[len("robust-") : -len(name) - 1]
             pairs.append(f"{regime} {_g(nees)} → {_g(nees2)}")
-            if not in_band2:
-                out.append(f"`{regime}`")
+            if not in_band2:  # out of band: below it, cautious; above it, overconfident
+                out.append(f"`{regime}` ({'below' if nees2 < 6.0 else 'above'})")
     listed = " and ".join([", ".join(out[:-1]), out[-1]] if len(out) > 1 else out)
     return "; ".join(pairs), (
         f"it stays out of band in {listed}" if out else "it is in band in every regime"

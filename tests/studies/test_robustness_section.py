@@ -68,8 +68,8 @@ def test_the_section_names_the_shipped_scenarios_out_of_band_and_where_the_terms
     assert f"{shipped} shipped scenarios, as they ship, {shipped - 1} are" in text
     assert "(out of band: `robust-far_standoff`)" in text
     assert f"lqr {high + 1.0:.3g} → 6;" in text
-    assert "with them it stays out of band in `realistic-auv`." in text
-    assert "so counted it stays out of band in `far`." in text
+    assert "with them it stays out of band in `realistic-auv` (above)." in text
+    assert "so counted it stays out of band in `far` (above)." in text
     # Every second-order row in band: the sentence says so.
     compared = [(v, result([1.0] * 1000, 6.0)) for v in variants]
     text = " ".join(section_module.section(tmp_path, tmp_path, 1000, {}).split())
