@@ -13,6 +13,7 @@ exceeds :data:`LOST_ERROR` (the paper's divergence threshold); the section lists
 
 from drake_uuv.studies import Group, Variant
 
+from .navigation import LAWS
 from .shares import with_shares
 
 ROBUSTNESS_TITLE = "robustness: lost runs, worst error and consistency over many seeds"
@@ -23,12 +24,9 @@ SHIPPED = ("paper", "noisy_sonar", "far_standoff", "hovering_auv", "realistic")
 #: The regimes the raw-range filters are compared in: (scenario, overrides).
 REGIMES: dict[str, tuple[str, tuple[str, ...]]] = {
     "paper": ("paper", ()),
-    # The paper's loop under a damped LQR law with q* fixed in the world (≤ 3 m/s²), the law
-    # under which the textbook EKF is overconfident.
-    "lqr": (
-        "paper",
-        ("tracking=LqrTracking", "tracking.reference_frame=world", "tracking.max_acceleration=3"),
-    ),
+    # The paper's loop under the navigation study's damped LQR law with q* fixed in the world
+    # (≤ 3 m/s²), the law under which the textbook EKF is overconfident.
+    "lqr": ("paper", LAWS["lqr"]),
     "far": ("far_standoff", ()),
     "noisy": ("noisy_sonar", ()),
     "realistic-auv": ("realistic", ()),

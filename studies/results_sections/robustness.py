@@ -80,7 +80,8 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
             shipped_out.append(f"`{variant.name}`")
         if variant.name.endswith(("-ekf", "-ekf2", "-ukf", "-ukf2")):
             nees_of[variant.name] = (result.summary.get("nees_mean", math.nan), in_band)
-    pairs, where = _pairs(nees_of, "ekf"), _pairs(nees_of, "ukf")
+    ekf_nees, ekf_option = _pairs(nees_of, "ekf")
+    ukf_nees, ukf_option = _pairs(nees_of, "ukf")
     vehicle_runs = round(VEHICLE_SHARE * runs)
     cloud_runs = round(LARGE_CLOUD_SHARE * runs)
     cloud = f"{LARGE_CLOUD:,}".replace(",", " ")
@@ -112,12 +113,12 @@ inside the band (`drake-uuv compare --group robustness --runs {runs}`). Of the
 {len(as_shipped)} shipped scenarios, as they ship, {len(as_shipped) - len(shipped_out)} are
 consistent{"" if not shipped_out else " (out of band: " + ", ".join(shipped_out) + ")"}.
 
-The EKF's mean NEES, textbook → second-order: {pairs[0]}. The second-order terms are what the
+The EKF's mean NEES, textbook → second-order: {ekf_nees}. The second-order terms are what the
 textbook EKF misses where the range shell bends (their mean moves the estimate inside the
-shell, their variance widens the ranges' noise): with them {pairs[1]}. The UKF's, its
+shell, their variance widens the ranges' noise): with them {ekf_option}. The UKF's, its
 linearisation error counted as independent from update to update → over 4 updates (`--set
 estimator.linearisation_correlation=4`; its sigma points carry the second-order term already):
-{where[0]}; so counted {where[1]}.
+{ukf_nees}; so counted {ukf_option}.
 """
 
 
