@@ -55,6 +55,7 @@ def cloud_advance(
     jitter: np.ndarray,
     resample_threshold: float,
     bandwidth: float,
+    range_bearing: bool,
     out: np.ndarray,
     out_log_weights: np.ndarray,
     x: np.ndarray,
@@ -67,7 +68,9 @@ def cloud_advance(
     else its ``particles`` (B×N×6, stored) with ``log_weights``, or where ``reweigh`` the
     posterior's (:func:`~drake_uuv.models.particle_kernels.cloud_posterior`'s log weights,
     weights and moments). Resampled when its effective sample size is below
-    ``resample_threshold · N`` (systematic, then the shrinkage kernel of ``bandwidth``), moved
+    ``resample_threshold · N`` (systematic, then the shrinkage kernel of ``bandwidth``, with
+    ``range_bearing`` in range–bearing coordinates where the cloud allows: see
+    :mod:`drake_uuv.models.particle_filter`), moved
     by the double integrator of ``time_step`` with ``acceleration`` (B×3) less ``W_factor ε``,
     plus ``jitter[b] ε'`` (factors of the navigation's noise; zeros: none). Writes ``out``
     (B×N×6; not ``particles``), ``out_log_weights`` and the predicted moments ``x``, ``P``.
@@ -76,6 +79,7 @@ def cloud_advance(
     weights, lw, chosen = np.empty(n), np.empty(n), np.empty(n, dtype=np.int64)
     ranges, drawn_cloud = np.empty((n, 2)), np.empty((n, 6))
     L, mean, c = np.empty((6, 6)), np.empty(6), np.empty(6)
+    local = np.empty((n if range_bearing else 0, 6))
     half = 0.5 * time_step * time_step
     for b in range(B):
         if not moving[b]:
@@ -95,8 +99,8 @@ def cloud_advance(
         cov = posterior_P[b] if known else P[b]  # P[b] is work space without the moments
         _advance_run(
             particles[b], drawn_cloud, drawn[b], lw, weights, known, mean, cov, key, chosen, L, c,
-            time_step, W_factor, jitter[b], resample_threshold, bandwidth, out[b],
-            out_log_weights[b], x[b], P[b],
+            time_step, W_factor, jitter[b], resample_threshold, bandwidth, range_bearing,
+            offset[b], local, out[b], out_log_weights[b], x[b], P[b],
         )  # fmt: skip
 
 
@@ -268,6 +272,60 @@ def _prepare_resampling(
 
 
 @njit(fastmath=CONTRACT)
+def _range_bearing_cloud(
+    cloud: np.ndarray, offset: np.ndarray, weights: np.ndarray, E: np.ndarray, local: np.ndarray
+) -> float:  # pragma: no cover - compiled
+    """The cloud (N×6, stored) in range–bearing coordinates in ``local``, the frame's rotation
+    in ``E`` (first row: the weighted mean position's direction); returns the mean range, or 0
+    where the Cartesian kernel applies (a mean at the origin, or a particle at or behind the
+    plane normal to that direction)."""
+    n = cloud.shape[0]
+    m = np.zeros(3)
+    for i in range(n):
+        for k in range(3):
+            m[k] += weights[i] * (cloud[i, k] + offset[k])
+    radius = math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
+    if not radius > 0.0:
+        return 0.0
+    u = m / radius
+    axis = np.array([0.0, 0.0, 1.0]) if abs(u[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    w = np.cross(u, axis)
+    w /= math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    v = np.cross(w, u)
+    for k in range(3):
+        E[0, k], E[1, k], E[2, k] = u[k], v[k], w[k]
+    for i in range(n):
+        q0, q1, q2 = cloud[i, 0] + offset[0], cloud[i, 1] + offset[1], cloud[i, 2] + offset[2]
+        d0 = E[0, 0] * q0 + E[0, 1] * q1 + E[0, 2] * q2
+        if not d0 > 0.0:
+            return 0.0
+        d1 = E[1, 0] * q0 + E[1, 1] * q1 + E[1, 2] * q2
+        d2 = E[2, 0] * q0 + E[2, 1] * q1 + E[2, 2] * q2
+        r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        local[i, 0] = r
+        local[i, 1] = radius * math.atan2(d1, d0)
+        local[i, 2] = radius * math.asin(d2 / r)
+        for k in range(3, 6):
+            local[i, k] = cloud[i, k]
+    return radius
+
+
+@njit(fastmath=CONTRACT)
+def _from_range_bearing(
+    y: np.ndarray, E: np.ndarray, radius: float, offset: np.ndarray, p: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """A particle's range–bearing coordinates ``y`` back in the stored frame, in ``p``."""
+    azimuth, elevation = y[1] / radius, y[2] / radius
+    d0 = y[0] * math.cos(elevation) * math.cos(azimuth)
+    d1 = y[0] * math.cos(elevation) * math.sin(azimuth)
+    d2 = y[0] * math.sin(elevation)
+    for k in range(3):
+        p[k] = E[0, k] * d0 + E[1, k] * d1 + E[2, k] * d2 - offset[k]
+    for k in range(3, 6):
+        p[k] = y[k]
+
+
+@njit(fastmath=CONTRACT)
 def _advance_run(
     source: np.ndarray,
     drawn: np.ndarray,
@@ -286,6 +344,9 @@ def _advance_run(
     jitter: np.ndarray,
     resample_threshold: float,
     bandwidth: float,
+    range_bearing: bool,
+    offset: np.ndarray,
+    local: np.ndarray,
     target: np.ndarray,
     out_log_weights: np.ndarray,
     x: np.ndarray,
@@ -294,13 +355,22 @@ def _advance_run(
     """One run of :func:`cloud_advance` from its cloud ``source`` (N×6, stored, read-only) or
     with ``use_drawn`` its ``drawn`` cloud (one compiled function for both), log weights ``lw``
     and ``weights`` (with ``have_moments`` their ``mean`` and ``cov``): resampled when
-    degenerate, moved into ``target``; ``lw`` and ``weights`` become the predicted ones."""
+    degenerate, moved into ``target``; ``lw`` and ``weights`` become the predicted ones. With
+    ``range_bearing`` the kernel acts on the cloud's range–bearing coordinates (about its
+    frame, relative: stored plus ``offset``) in ``local`` (N×6 work space) where it can."""
     n = source.shape[0]
     zero = np.zeros(6)
     shift = np.empty(6)
     shrink = math.sqrt(1.0 - bandwidth * bandwidth)
     resample = effective_sample_size(weights) < resample_threshold * n
+    E = np.empty((3, 3))
+    radius = 0.0  # > 0: the kernel moves the range–bearing coordinates
+    if resample and bandwidth > 0.0 and range_bearing:
+        radius = _range_bearing_cloud(drawn if use_drawn else source, offset, weights, E, local)
     if resample:
+        if radius > 0.0:  # the coordinates' own moments (``mean``, ``cov``: the posterior's)
+            source, drawn, use_drawn, have_moments = local, local, False, False
+            mean, cov = np.empty(6), np.empty((6, 6))
         _prepare_resampling(
             source, drawn, use_drawn, weights, have_moments, mean, cov, key, bandwidth, L, shift,
             chosen,
@@ -321,7 +391,12 @@ def _advance_run(
         else:
             for k in range(6):
                 p[k] = source[row, k]
-        if resample and bandwidth > 0.0:
+        if radius > 0.0:
+            _draw_gaussian(key, i, KERNEL_SLOT, shift, L, zero, e)
+            for k in range(6):
+                e[k] += shrink * local[row, k]
+            _from_range_bearing(e, E, radius, offset, p)
+        elif resample and bandwidth > 0.0:
             _draw_gaussian(key, i, KERNEL_SLOT, shift, L, zero, e)
             for k in range(6):
                 p[k] = e[k] + shrink * p[k]

@@ -31,6 +31,17 @@ to the cloud at every resampling and so acts as extra process noise, the shrinka
 cloud's mean and covariance. ``h`` is ``bandwidth_scale`` times the Gaussian kernel's optimal
 bandwidth ``(4 / ((n + 2) N))^{1/(n+4)}`` (Musso et al., n = 6), or none when the scale is 0.
 
+``kernel: range_bearing`` applies the same move in range–bearing coordinates about the cloud's
+weighted mean direction ``u`` (range ``|q|``, and azimuth and elevation about ``u`` times the
+mean range ``|q̄|``; the velocity as it is), then maps the particles back. Far out the ranges
+pin a particle to a thin curved shell: in Cartesian coordinates the kernel's pull toward the
+mean and its noise push particles off the shell, the next ranges remove them, and the cloud
+narrows across the line of sight at every resampling (``far_standoff``, 14 m: the RMS of
+√tr P_qq was 1.055 m against a per-run Cramér–Rao bound of 1.083 m, mean NEES 6.79 over 1000
+seeds). Along the shell the move keeps each particle's range. Where some particle lies at or
+behind the plane normal to ``u`` (a cloud around the vehicle, whose bearings would wrap),
+the step uses the Cartesian kernel.
+
 Initialisation
 --------------
 :func:`initial_particles` draws ``N(x̂, P)``. The scenario's prior ``N(0, I)`` is far from the
@@ -61,6 +72,9 @@ import numpy as np
 from drake_uuv.models.measurement import batch_ranges
 
 STATE_SIZE = 6
+
+#: The regularisation kernel's coordinates (see the module's text).
+KERNELS = ("cartesian", "range_bearing")
 
 
 class Workspace:
@@ -104,6 +118,8 @@ class ParticleFilterParameters:
     resample_threshold: float = 0.5
     # h = bandwidth_scale × the Gaussian kernel's optimal bandwidth; 0: no regularisation.
     bandwidth_scale: float = 1.0
+    # The coordinates the kernel moves particles in: one of KERNELS.
+    kernel: str = "cartesian"
 
     def __post_init__(self) -> None:
         if isinstance(self.count, bool) or not isinstance(self.count, int | np.integer):
@@ -116,6 +132,8 @@ class ParticleFilterParameters:
             )
         if not (math.isfinite(self.bandwidth_scale) and 0.0 <= self.bandwidth_scale):
             raise ValueError(f"bandwidth_scale: must be ≥ 0, got {self.bandwidth_scale!r}")
+        if self.kernel not in KERNELS:
+            raise ValueError(f"kernel: must be one of {', '.join(KERNELS)}, got {self.kernel!r}")
 
     @property
     def bandwidth(self) -> float:
@@ -359,6 +377,67 @@ def shrinkage_kernel(
     return moved
 
 
+def range_bearing_frame(
+    particles: np.ndarray, weights: np.ndarray, offset: np.ndarray | None = None
+) -> tuple[np.ndarray, float] | None:
+    """The range–bearing kernel's frame of a cloud (6×N, stored frame: relative less
+    ``offset``): the rotation ``E`` whose first row is the weighted mean position's direction,
+    and the mean range ``|q̄|``; None where the Cartesian kernel applies instead (a mean at the
+    origin, or a particle at or behind the plane normal to that direction)."""
+    q = particles[:3] + (0.0 if offset is None else np.asarray(offset, float)[:3, None])
+    mean = q @ weights
+    radius = float(np.linalg.norm(mean))
+    if not radius > 0.0:
+        return None
+    u = mean / radius
+    # The second axis: the component of the world axis least aligned with u, normalised.
+    axis = np.array([0.0, 0.0, 1.0]) if abs(u[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    w = np.cross(u, axis)
+    w /= np.linalg.norm(w)
+    E = np.stack([u, np.cross(w, u), w])
+    if not np.all(u @ q > 0.0):
+        return None
+    return E, radius
+
+
+def to_range_bearing(
+    particles: np.ndarray, frame: tuple[np.ndarray, float], offset: np.ndarray | None = None
+) -> np.ndarray:
+    """Particles (6×N, stored frame) in the kernel's coordinates ``[r, r̄ α, r̄ β, ϑ]``:
+    range, azimuth ``α`` and elevation ``β`` about the frame's first axis times the mean range
+    ``r̄``, and the velocity as it is."""
+    E, radius = frame
+    offset = np.zeros(STATE_SIZE) if offset is None else np.asarray(offset, float)
+    d = E @ (particles[:3] + offset[:3, None])
+    r = np.sqrt(np.sum(d * d, axis=0))
+    local = np.empty_like(particles)
+    local[0] = r
+    local[1] = radius * np.arctan2(d[1], d[0])
+    local[2] = radius * np.arcsin(d[2] / r)
+    local[3:] = particles[3:]
+    return local
+
+
+def from_range_bearing(
+    local: np.ndarray, frame: tuple[np.ndarray, float], offset: np.ndarray | None = None
+) -> np.ndarray:
+    """The inverse of :func:`to_range_bearing`: particles (6×N) in the stored frame."""
+    E, radius = frame
+    offset = np.zeros(STATE_SIZE) if offset is None else np.asarray(offset, float)
+    azimuth, elevation = local[1] / radius, local[2] / radius
+    d = local[0] * np.stack(
+        [
+            np.cos(elevation) * np.cos(azimuth),
+            np.cos(elevation) * np.sin(azimuth),
+            np.sin(elevation),
+        ]
+    )
+    particles = np.empty_like(local)
+    particles[:3] = E.T @ d - offset[:3, None]
+    particles[3:] = local[3:]
+    return particles
+
+
 def pf_predict(
     particles: np.ndarray,
     log_weights: np.ndarray,
@@ -425,10 +504,18 @@ def resample_regularised(
     if h > 0.0 and moments is None:
         moments = weighted_moments(particles, weights, work)
     chosen = systematic_resample(weights, float(rng.random()))
+    source = particles
     # "clip": the indices are in range, and numpy buffers ``out`` under the default "raise".
     particles = np.take(particles, chosen, axis=1, out=_buffer(work, 2, rows, n), mode="clip")
     log_weights = np.full(n, -math.log(n))
-    if h > 0.0:
+    frame = None
+    if h > 0.0 and parameters.kernel == "range_bearing":
+        frame = range_bearing_frame(source, weights)
+    if frame is not None:  # the particles are relative here (no stored-frame offset)
+        local = to_range_bearing(source, frame)
+        moved = shrinkage_kernel(local[:, chosen], *weighted_moments(local, weights), h, rng)
+        particles[...] = from_range_bearing(moved, frame)
+    elif h > 0.0:
         particles = shrinkage_kernel(particles, *moments, h, rng, work)
     return particles, log_weights, chosen
 

@@ -171,8 +171,11 @@ def reference_step(
     from drake_uuv.models import particle_random as kernels
     from drake_uuv.models.particle_filter import (
         effective_sample_size,
+        from_range_bearing,
         normalised,
+        range_bearing_frame,
         systematic_resample,
+        to_range_bearing,
         weighted_moments,
     )
 
@@ -191,11 +194,19 @@ def reference_step(
     weights = normalised(log_weights)
     if effective_sample_size(weights) < parameters.resample_threshold * n:
         h = parameters.bandwidth
-        mean, cov = weighted_moments(particles.T, weights)
+        frame = None
+        if h > 0.0 and parameters.kernel == "range_bearing":
+            frame = range_bearing_frame(particles.T, weights, offset)
+        # The kernel's coordinates: range-bearing about the frame, or the stored ones.
+        local = particles if frame is None else to_range_bearing(particles.T, frame, offset).T
+        mean, cov = weighted_moments(local.T, weights)
         chosen = systematic_resample(weights, kernels.resampling_uniforms(keys, n)[0])
         a = np.sqrt(1.0 - h * h)
-        particles = a * particles[chosen] + (1.0 - a) * mean
-        particles += h * normals(kernels.KERNEL_SLOT, 6) @ np.linalg.cholesky(cov).T
+        particles = a * local[chosen] + (1.0 - a) * mean
+        if h > 0.0:
+            particles += h * normals(kernels.KERNEL_SLOT, 6) @ np.linalg.cholesky(cov).T
+        if frame is not None:
+            particles = from_range_bearing(particles.T, frame, offset).T
         log_weights = np.full(n, -np.log(n))
     noise = normals(kernels.ACCELERATION_SLOT, 3) @ np.linalg.cholesky(W).T
     moved = particles @ A.T + B @ a_W - noise @ B.T

@@ -334,6 +334,8 @@ def test_a_filter_without_a_gaussian_update_needs_the_linear_start() -> None:
          r"^estimator.particle_bridge: unknown field"),
         (["estimator=!ParticleFilter", "estimator.particle_bridge=false"],
          r"^estimator.particle_bridge: unknown field"),
+        (["estimator=!ParticleFilter", "estimator.particle_kernel=polar"],
+         r"^estimator.particle_kernel: must be one of cartesian, range_bearing, got 'polar'$"),
     ],
 )  # fmt: skip
 def test_bad_bridge_values_name_the_field(overrides: list[str], message: str) -> None:

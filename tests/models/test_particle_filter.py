@@ -275,11 +275,54 @@ def test_bandwidth_is_the_scaled_gaussian_optimum():
         ({"count": 2.5}, r"^count: must be an integer, got 2.5$"),
         ({"resample_threshold": 1.5}, r"^resample_threshold: must be in \[0, 1\], got 1.5$"),
         ({"bandwidth_scale": -1.0}, r"^bandwidth_scale: must be ≥ 0, got -1.0$"),
+        ({"kernel": "polar"}, r"^kernel: must be one of cartesian, range_bearing, got 'polar'$"),
     ],
 )
 def test_bad_parameters_raise(kwargs, message):
     with pytest.raises(ValueError, match=message):
         ParticleFilterParameters(**kwargs)
+
+
+def test_the_numpy_range_bearing_kernel_keeps_each_particle_s_range():
+    """The numpy resampling (the late-range window's) with ``kernel: range_bearing``: a cloud
+    on the sphere |q| = 14 m keeps every particle's range exactly and the cloud's moments in
+    its range-bearing coordinates within their standard errors; the Cartesian kernel leaves
+    the shell."""
+    from drake_uuv.models.particle_filter import (
+        range_bearing_frame,
+        resample_regularised,
+        to_range_bearing,
+    )
+
+    rng = np.random.default_rng(5)
+    count, radius = 20_000, 14.0
+    direction = np.array([-0.7, -0.7, 0.1])[:, None] + 0.1 * rng.standard_normal((3, count))
+    q = radius * direction / np.linalg.norm(direction, axis=0)
+    particles = np.vstack([q, 0.2 * rng.standard_normal((3, count))])
+    weights = normalised(-rng.uniform(0.0, 0.01, count))  # resampled at threshold 1
+    log_weights = np.log(weights)
+    parameters = ParticleFilterParameters(count=count, resample_threshold=1.0)
+    moved = {}
+    for kernel in ("range_bearing", "cartesian"):
+        chosen_parameters = ParticleFilterParameters(count, 1.0, kernel=kernel)
+        out, _, chosen = resample_regularised(
+            particles, log_weights, np.random.default_rng(6), chosen_parameters
+        )
+        assert chosen is not None
+        moved[kernel] = out
+    assert_allclose(np.linalg.norm(moved["range_bearing"][:3], axis=0), radius, rtol=1e-13)
+    assert np.std(np.linalg.norm(moved["cartesian"][:3], axis=0)) > 0.01
+    frame = range_bearing_frame(particles, weights)
+    before = weighted_moments(to_range_bearing(particles, frame), weights)
+    after = weighted_moments(
+        to_range_bearing(moved["range_bearing"], frame), np.full(count, 1 / count)
+    )
+    scale = np.sqrt(np.diag(before[1]))
+    tolerance = 5.0 * scale / math.sqrt(count)
+    assert np.all(np.abs(after[0] - before[0])[1:] <= tolerance[1:])  # range: 0 ± 0
+    variance_tolerance = 5.0 * math.sqrt(2.0 / count) * scale**2
+    assert np.all(np.abs(np.diag(after[1]) - np.diag(before[1])) <= variance_tolerance + 1e-24)
+    assert parameters.kernel == "cartesian"  # the default
 
 
 def test_tempering_keeps_the_floor_with_the_largest_power_of_the_likelihood():

@@ -64,14 +64,17 @@ def advance(particles, log_weights, seeds, parameters, a_W, **options):
     R = np.tile(np.diag([0.01, 0.02]), (runs, 1, 1))
     jitter = options.get("jitter")
     jitter = np.zeros((runs, 6, 6)) if jitter is None else np.tile(jitter, (runs, 1, 1))
+    offset = np.tile(options.get("offset", np.zeros(6)), (runs, 1))
+    W_factor = options.get("W_factor", np.linalg.cholesky(W))
     out, out_log = np.empty((runs, count, 6)), np.empty((runs, count))
     x, P = np.empty((runs, 6)), np.empty((runs, 6, 6))
     empty = np.empty((runs, count))
     particle_advance.cloud_advance(
         particles, log_weights, zeros, empty, empty, x, P, particle_random.cloud_keys(seeds),
-        np.ones(runs, dtype=bool), drawn, draw_x, draw_P, zeros, np.zeros((runs, 6)), z, used,
-        q_s, R, T, np.tile(a_W, (runs, 1)), np.linalg.cholesky(W), jitter,
-        parameters.resample_threshold, parameters.bandwidth, out, out_log, x, P,
+        np.ones(runs, dtype=bool), drawn, draw_x, draw_P, zeros, offset, z, used,
+        q_s, R, T, np.tile(a_W, (runs, 1)), W_factor, jitter,
+        parameters.resample_threshold, parameters.bandwidth,
+        parameters.kernel == "range_bearing", out, out_log, x, P,
     )  # fmt: skip
     return out, out_log, x, P
 
@@ -189,6 +192,108 @@ def test_the_periodic_update_is_the_numpy_steps_with_the_same_draws(threshold, b
         weights = np.exp(log_next - log_next.max())
         weights /= weights.sum()
         assert_allclose(x[run], weights @ moved, rtol=1e-12)
+
+
+@pytest.mark.parametrize("resample_threshold", [1.0, 0.0])
+def test_the_range_bearing_kernel_is_the_numpy_steps_with_the_same_draws(resample_threshold):
+    """Offset stored frame: the kernel's frame and coordinates are the relative position's."""
+    count = 400
+    parameters = ParticleFilterParameters(
+        count=count, resample_threshold=resample_threshold, kernel="range_bearing"
+    )
+    particles, log_weights = cloud(3, count)
+    offset = np.array([0.4, -0.3, 0.2, 0.05, 0.0, -0.05])
+    particles -= offset  # stored = relative less the offset
+    seeds = np.array([0.1, 0.5, 0.9])
+    a_W = np.array([0.3, -0.2, 0.1])
+    out, out_log, _, _ = advance(particles, log_weights, seeds, parameters, a_W, offset=offset)
+    for run in range(3):
+        moved, log_next = reference_step(
+            particles[run], log_weights[run], seeds[run], parameters, a_W, model=(A, B, W),
+            offset=offset,
+        )  # fmt: skip
+        assert_allclose(out[run], moved, rtol=1e-11, atol=1e-11)
+        assert_allclose(out_log[run], log_next, rtol=1e-12)
+    cartesian = ParticleFilterParameters(count=count, resample_threshold=resample_threshold)
+    other, _, _, _ = advance(particles, log_weights, seeds, cartesian, a_W, offset=offset)
+    # Without resampling the kernels do not act; with it they differ.
+    assert np.array_equal(out, other) == (resample_threshold == 0.0)
+
+
+def _shell(count: int, radius: float, offset: np.ndarray, seed: int = 3):
+    """A cloud on the sphere |q| = radius about a direction (relative), at rest, stored less
+    ``offset``, with unequal weights (a threshold of 1 resamples it)."""
+    rng = np.random.default_rng(seed)
+    direction = np.array([-0.7, -0.7, 0.1]) + 0.15 * rng.standard_normal((count, 3))
+    q = radius * direction / np.linalg.norm(direction, axis=1, keepdims=True)
+    particles = np.hstack([q, np.zeros((count, 3))]) - offset
+    return particles[None], -np.log(rng.uniform(1.0, 2.0, (1, count)))
+
+
+def test_the_range_bearing_kernel_keeps_each_particle_on_its_range_shell():
+    """Closed form: particles at one range, at rest, with no process noise, are resampled and
+    moved by the kernel only; in range-bearing coordinates each keeps the range exactly (the
+    range's variance is 0), in Cartesian ones they leave the shell."""
+    count, radius = 2000, 14.0
+    offset = np.array([0.5, -0.2, 0.1, 0.0, 0.0, 0.0])
+    particles, log_weights = _shell(count, radius, offset)
+    no_noise = np.zeros((3, 3))
+    ranges = {}
+    for kernel in ("range_bearing", "cartesian"):
+        parameters = ParticleFilterParameters(count=count, resample_threshold=1.0, kernel=kernel)
+        out, out_log, _, _ = advance(
+            particles, log_weights, np.array([0.3]), parameters, np.zeros(3), offset=offset,
+            W_factor=no_noise,
+        )  # fmt: skip
+        assert_array_equal(out_log, -math.log(count))  # it resampled
+        ranges[kernel] = np.linalg.norm(out[0, :, :3] + offset[:3], axis=1)
+    assert_allclose(ranges["range_bearing"], radius, rtol=1e-13)
+    assert np.std(ranges["cartesian"]) > 0.01  # h ≈ 0.30 of a cloud ~2 m across
+    before = np.linalg.norm(particles[0, :, :3] + offset[:3], axis=1)
+    assert_allclose(before, radius, rtol=1e-13)
+
+
+def test_a_cloud_around_the_vehicle_takes_the_cartesian_kernel():
+    """A particle behind the plane normal to the mean direction (bearings would wrap): the
+    step is the Cartesian kernel's, bit for bit."""
+    count = 300
+    particles, log_weights = _shell(count, 3.0, np.zeros(6))
+    particles[0, 0, :3] *= -1.0  # one particle on the far side
+    result = {}
+    for kernel in ("range_bearing", "cartesian"):
+        parameters = ParticleFilterParameters(count=count, resample_threshold=1.0, kernel=kernel)
+        result[kernel] = advance(particles, log_weights, np.array([0.3]), parameters, np.ones(3))
+    for got, want in zip(result["range_bearing"], result["cartesian"], strict=True):
+        assert_array_equal(got, want)
+
+
+def test_range_bearing_coordinates_in_closed_form_and_back():
+    """A particle at the mean direction turned by φ toward the frame's second axis and θ
+    toward its third has coordinates [r, r̄ φ, r̄ θ]; the map back is the inverse."""
+    from drake_uuv.models.particle_filter import (
+        from_range_bearing,
+        range_bearing_frame,
+        to_range_bearing,
+    )
+
+    offset = np.array([1.0, 2.0, -0.5, 0.1, 0.2, 0.3])
+    q = np.array([[10.0, 9.0, 11.0], [-5.0, -6.0, -4.0], [1.0, 0.5, 1.5]])  # 3 particles
+    particles = np.vstack([q, np.ones((3, 3))]) - offset[:, None]
+    weights = np.array([0.5, 0.25, 0.25])
+    E, radius = range_bearing_frame(particles, weights, offset)
+    assert_allclose(E @ E.T, np.eye(3), atol=1e-15)
+    assert_allclose(radius, np.linalg.norm(q @ weights))
+    assert_allclose(E[0], q @ weights / radius)
+    phi, theta, r = 0.1, -0.05, 12.0
+    d = r * np.array([np.cos(theta) * np.cos(phi), np.cos(theta) * np.sin(phi), np.sin(theta)])
+    one = np.concatenate([E.T @ d, [0.1, 0.2, 0.3]]) - offset
+    local = to_range_bearing(one[:, None], (E, radius), offset)
+    assert_allclose(local[:, 0], [r, radius * phi, radius * theta, 0.0, 0.0, 0.0], atol=1e-12)
+    back = from_range_bearing(to_range_bearing(particles, (E, radius), offset), (E, radius), offset)
+    assert_allclose(back, particles, atol=1e-12)
+    behind = particles.copy()
+    behind[:3, 1] = -(q @ weights) - offset[:3]  # one particle opposite the mean direction
+    assert range_bearing_frame(behind, weights, offset) is None
 
 
 def test_a_batch_is_its_runs_alone_bit_for_bit():
