@@ -14,10 +14,11 @@ from typing import Any
 import numpy as np
 
 from drake_uuv.models.statistics import nees_band
+from drake_uuv.scenario import load_scenario
 from drake_uuv.studies import compare_groups
 from drake_uuv.studies.study import StudyResult
 
-from ..robustness import LOST_ERROR, ROBUSTNESS_GROUP, SHIPPED
+from ..robustness import LOST_ERROR, REGIMES, ROBUSTNESS_GROUP, SHIPPED
 from ..shares import LARGE_CLOUD, LARGE_CLOUD_SHARE, VEHICLE_SHARE
 
 # Seeds listed in a row at most; more are counted.
@@ -85,6 +86,9 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
     vehicle_runs = round(VEHICLE_SHARE * runs)
     cloud_runs = round(LARGE_CLOUD_SHARE * runs)
     cloud = f"{LARGE_CLOUD:,}".replace(",", " ")
+    far = load_scenario(REGIMES["far"][0]).estimator
+    far_count = f"{far.particle_count:,}".replace(",", " ")
+    far_kernel = far.particle_kernel.replace("_", "–")
     return f"""
 ## Does any run get lost?
 
@@ -99,10 +103,12 @@ with the ranges' second-order terms (`ekf2`: Gelb's truncated second-order filte
 variance counted over 7 updates, `--set estimator.second_order=full --set
 estimator.linearisation_correlation=7`); so does the UKF, as the textbook filter (`ukf`) and
 with its linearisation error's variance counted over 4 updates (`ukf2`). A run is lost when the
-estimator-health monitor stopped it or its final position error exceeds {LOST_ERROR:g} m. Every
-filter runs with its defaults: the EKF and UKF with their recovery (a run whose innovations
-say it diverged goes back to its linear start) and, in the realistic scenario, the tracking
-law's hold (at rest while the filter is in its linear start). The
+estimator-health monitor stopped it or its final position error exceeds {LOST_ERROR:g} m. A
+regime's filters take its scenario's particle options (at the far standoff, as
+`far_standoff.yaml`: {far_count} particles, the regularisation kernel in {far_kernel}
+coordinates) and otherwise their defaults: the EKF and UKF with their recovery (a run whose
+innovations say it diverged goes back to its linear start) and, in the realistic scenario, the
+tracking law's hold (at rest while the filter is in its linear start). The
 band is the 95 % band of a consistent filter's NEES averaged over the row's runs at one step,
 χ²(6n)/n: a time average varies less, so a mean outside it is inconsistent.
 
