@@ -79,10 +79,11 @@ def section(work: Path, docs: Path, runs: int, execution: dict[str, Any]) -> str
         consistent += in_band
         if variant.name in as_shipped and not in_band:
             shipped_out.append(f"`{variant.name}`")
-        if variant.name.endswith(("-ekf", "-ekf2", "-ukf", "-ukf2")):
+        if variant.name.endswith(("-ekf", "-ekf2", "-ukf", "-ukf2", "-pf", "-pf2")):
             nees_of[variant.name] = (result.summary.get("nees_mean", math.nan), in_band)
     ekf_nees, ekf_option = _pairs(nees_of, "ekf")
     ukf_nees, ukf_option = _pairs(nees_of, "ukf")
+    pf_nees, pf_option = _pairs(nees_of, "pf")
     vehicle_runs = round(VEHICLE_SHARE * runs)
     cloud_runs = round(LARGE_CLOUD_SHARE * runs)
     cloud = f"{LARGE_CLOUD:,}".replace(",", " ")
@@ -102,7 +103,9 @@ the realistic scenario on both plants. The EKF runs twice: as the textbook filte
 with the ranges' second-order terms (`ekf2`: Gelb's truncated second-order filter, its term's
 variance counted over 7 updates, `--set estimator.second_order=full --set
 estimator.linearisation_correlation=7`); so does the UKF, as the textbook filter (`ukf`) and
-with its linearisation error's variance counted over 4 updates (`ukf2`). A run is lost when the
+with its linearisation error's variance counted over 4 updates (`ukf2`); and in the paper's
+regime, under the LQR law and with noisy sonars, the particle filter with its regularisation
+kernel in range–bearing coordinates (`pf2`). A run is lost when the
 estimator-health monitor stopped it or its final position error exceeds {LOST_ERROR:g} m. A
 regime's filters take its scenario's particle options (at the far standoff, as
 `far_standoff.yaml`: {far_count} particles, the regularisation kernel in {far_kernel}
@@ -124,7 +127,10 @@ textbook EKF misses where the range shell bends (their mean moves the estimate i
 shell, their variance widens the ranges' noise): with them {ekf_option}. The UKF's, its
 linearisation error counted as independent from update to update → over 4 updates (`--set
 estimator.linearisation_correlation=4`; its sigma points carry the second-order term already):
-{ukf_nees}; so counted {ukf_option}.
+{ukf_nees}; so counted {ukf_option}. The particle filter's, its regularisation kernel in
+Cartesian → range–bearing coordinates (`pf2`, `--set estimator.particle_kernel=range_bearing`:
+each particle keeps its range; `far_standoff` ships it, and with late ranges it is refused):
+{pf_nees}; so moved {pf_option}.
 """
 
 

@@ -61,17 +61,20 @@ def test_the_section_names_the_shipped_scenarios_out_of_band_and_where_the_terms
     out = {"robust-far_standoff", "robust-realistic-auv-ekf2", "robust-lqr-ekf", "robust-far-ukf2"}
     low = nees_band(6, 1000)[0]
     nees = {name: high + 1.0 for name in out} | {"robust-lqr-ukf2": low - 0.5}
+    nees |= {"robust-noisy-pf": 6.4, "robust-noisy-pf2": 6.1}
     compared = [(v, result([1.0] * 1000, nees.get(v.name, 6.0))) for v in variants]
     monkeypatch.setattr(section_module, "compare_groups", lambda *args, **kwargs: compared)
     text = " ".join(section_module.section(tmp_path, tmp_path, 1000, {}).split())
     shipped = len(robustness.SHIPPED)
     assert f"{len(variants)} of {len(variants)} rows lose no run" in text
-    assert f"{len(variants) - 5} of {len(variants)} have their mean NEES" in text
+    assert f"{len(variants) - 6} of {len(variants)} have their mean NEES" in text
     assert f"{shipped} shipped scenarios, as they ship, {shipped - 1} are" in text
     assert "(out of band: `robust-far_standoff`)" in text
     assert f"lqr {high + 1.0:.3g} → 6;" in text
     assert "with them it stays out of band in `realistic-auv` (above)." in text
     assert "so counted it stays out of band in `lqr` (below) and `far` (above)." in text
+    # The particle filter's kernel in the three regimes that run it, in band in each.
+    assert "refused): paper 6 → 6; lqr 6 → 6; noisy 6.4 → 6.1; so moved it is in band" in text
     # Every second-order row in band: the sentence says so.
     compared = [(v, result([1.0] * 1000, 6.0)) for v in variants]
     text = " ".join(section_module.section(tmp_path, tmp_path, 1000, {}).split())
