@@ -14,6 +14,7 @@ Layout of a study folder ``DIR``:
 """
 
 import csv
+import dataclasses
 import io
 import json
 import math
@@ -79,12 +80,45 @@ def completed_seeds(out_dir: Path) -> set[int]:
     return done
 
 
-def _first_difference(a: Any, b: Any, prefix: str = "") -> str | None:
-    """The first dotted key where two JSON trees differ, with both values; None if equal."""
+class _Default:
+    """A field's default, as JSON data (a leaf of :func:`_defaults`' tree)."""
+
+    def __init__(self, value: Any) -> None:
+        self.value = value
+
+
+def _defaults(value: Any) -> Any:
+    """The tree of each dataclass field's default within ``value`` (a scenario), keyed as
+    :func:`~drake_uuv.scenario.scenario_as_dict` keys the scenario: a nested dataclass is a
+    dict of its fields, a field with a default a :class:`_Default`; others are left out."""
+    if not dataclasses.is_dataclass(value):
+        return None
+    tree: dict[str, Any] = {}
+    for field in dataclasses.fields(value):
+        current = getattr(value, field.name)
+        if dataclasses.is_dataclass(current):
+            tree[field.name] = _defaults(current)
+        elif field.default is not dataclasses.MISSING:
+            tree[field.name] = _Default(json.loads(json.dumps(field.default)))
+        elif field.default_factory is not dataclasses.MISSING:
+            tree[field.name] = _Default(json.loads(json.dumps(field.default_factory())))
+    return tree
+
+
+def _first_difference(a: Any, b: Any, prefix: str = "", defaults: Any = None) -> str | None:
+    """The first dotted key where two JSON trees differ, with both values; None if equal.
+
+    A key ``b`` has and ``a`` lacks is no difference where ``b`` holds that field's default
+    (from ``defaults``, :func:`_defaults`' tree): ``a`` was written before the field existed,
+    and a field added with a default keeps what the package did before it."""
     if isinstance(a, dict) and isinstance(b, dict):
+        defaults = defaults if isinstance(defaults, dict) else {}
         # A slot's variant first: a different variant explains every other difference.
         for key in sorted(set(a) | set(b), key=lambda k: (k != "variant", k)):
-            found = _first_difference(a.get(key), b.get(key), f"{prefix}{key}.")
+            default = defaults.get(key)
+            if key not in a and isinstance(default, _Default) and b[key] == default.value:
+                continue
+            found = _first_difference(a.get(key), b.get(key), f"{prefix}{key}.", default)
             if found:
                 return found
         return None
@@ -92,7 +126,8 @@ def _first_difference(a: Any, b: Any, prefix: str = "") -> str | None:
 
 
 def prepare(study: Study, resume: bool) -> None:
-    """Creates the folder; on resume checks the scenario, otherwise clears old runs.
+    """Creates the folder; on resume checks the scenario, otherwise clears old runs. A field
+    the stored scenario lacks (runs written before the field existed) matches its default.
 
     Raises :class:`MonteCarloError` when resuming a folder of another scenario's runs, or
     one with runs but no ``study.json``.
@@ -107,7 +142,9 @@ def prepare(study: Study, resume: bool) -> None:
     marker = out_dir / STUDY_FILE
     if resume and marker.exists():
         stored = json.loads(marker.read_text())
-        difference = _first_difference(stored.get("scenario"), scenario)
+        difference = _first_difference(
+            stored.get("scenario"), scenario, defaults=_defaults(study.scenario)
+        )
         if difference:
             raise MonteCarloError(
                 f"--resume: {out_dir} holds runs of another scenario: {difference}"

@@ -79,6 +79,31 @@ def test_resume_refuses_a_folder_of_another_scenario_naming_the_field(tmp_path, 
         prepare(other, resume=True)
 
 
+def test_resume_takes_a_field_newer_than_the_runs_at_its_default_only(tmp_path, short):
+    """Runs stored before a field existed: resumed where the field is at its default (a
+    field added with a default keeps what the package did before it), refused otherwise."""
+    study = _prepared(tmp_path, short)
+    marker = tmp_path / "study.json"
+    stored = json.loads(marker.read_text())
+    del stored["scenario"]["sonar"]["latency"]  # as written before sonar.latency existed
+    del stored["scenario"]["steps"]  # 80 here, not its default (500): a difference
+    marker.write_text(json.dumps(stored))
+    with pytest.raises(MonteCarloError, match=r"holds runs of another scenario: steps \(None on"):
+        prepare(study, resume=True)
+    stored["scenario"]["steps"] = short.steps
+    marker.write_text(json.dumps(stored))
+    prepare(study, resume=True)
+    marker.write_text(json.dumps(stored))
+    later = Study("test", dataclasses.replace(
+        short, sonar=dataclasses.replace(short.sonar, latency=0.1)), 3, tmp_path
+    )  # fmt: skip
+    with pytest.raises(
+        MonteCarloError,
+        match=r"holds runs of another scenario: sonar\.latency \(None on disk, 0\.1 now\)$",
+    ):
+        prepare(later, resume=True)
+
+
 def test_resume_refuses_runs_without_a_study_file(tmp_path, short):
     write_part(tmp_path, synthetic_chunk([0]))
     with pytest.raises(MonteCarloError, match=r"^--resume: .* has runs but no study\.json$"):
