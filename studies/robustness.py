@@ -49,9 +49,10 @@ ESTIMATORS: dict[str, tuple[str, ...]] = {
     "pf2": ("estimator=ParticleFilter", "estimator.particle_kernel=range_bearing"),
 }
 #: Rows only some regimes run: ``pf2`` (the particle filter's regularisation kernel in
-#: range-bearing coordinates) where it is not the scenario's own (``far_standoff`` ships it)
-#: and the ranges arrive at their tick (the late ranges' window refuses it).
-ONLY_IN: dict[str, tuple[str, ...]] = {"pf2": ("paper", "lqr", "noisy")}
+#: range-bearing coordinates) where it is not the scenario's own (``far_standoff`` ships it).
+ONLY_IN: dict[str, tuple[str, ...]] = {
+    "pf2": ("paper", "lqr", "noisy", "realistic-auv", "realistic-kinematic")
+}
 
 
 def robustness_variants() -> list[Variant]:

@@ -179,12 +179,6 @@ class ParticleCloud(LateRangeSteps):
             host, "particle_seed", 1, RandomDistribution.kUniform, batch_size=B
         )
         self._window = host.window
-        if self._window is not None and parameters.kernel != "cartesian":
-            # The window resamples its anchor's cloud, whose offset from the vehicle (the
-            # kernel's centre) the stored frame does not keep.
-            raise ValueError(
-                f"parameters.kernel: must be cartesian with late ranges, got {parameters.kernel!r}"
-            )
         if self._window is not None:  # each particle's target acceleration over each step
             D = self._window.schedule.window
             self._accelerations_index = host.DeclareDiscreteState(np.zeros(B * D * 3 * n))

@@ -286,12 +286,17 @@ class LateRangeSteps:
             )
             Q = host.navigation_process_noise(context)
         moved = moving & ~drawn
+        anchors = None
         if moved.any():
             particles = self._stored_runs(context)
             log_weights = self._log_weights_runs(context)
             u = self.accelerations(context)
             jitter = self.jitter(context)
             first = self._posterior.Eval(context)[5]
+            # The range-bearing kernel's centre, the vehicle at each anchor: the stored frame
+            # is the relative state less the navigated state there (navigated motion), or it.
+            if self._parameters.kernel == "range_bearing" and host.error_model.navigated_motion:
+                anchors = self._window_steps(context)[0].start
         x, P = np.full((B, 6), np.nan), np.full((B, 6, 6), np.nan)
         for r in np.flatnonzero(moving):
             rng = np.random.default_rng(int(seeds[r] * 2.0**_SEED_BITS))
@@ -310,6 +315,7 @@ class LateRangeSteps:
                             particles[r].T, log_weights[r], u[r],
                             None if jitter is None else jitter[r], first[r], rng, root,
                             out[r].T, u_next[r], None if jitter_next is None else jitter_next[r],
+                            None if anchors is None else anchors[r],
                         )  # fmt: skip
                     out_log_weights[r] = weights
                     moments(out[r], self._no_offset, weights, self._weights[0], x[r], P[r])
@@ -352,10 +358,11 @@ class LateRangeSteps:
         out: np.ndarray,
         u_next: np.ndarray,
         jitter_next: np.ndarray | None,
+        anchor: np.ndarray | None = None,
     ) -> np.ndarray:
         """One run's anchor cloud (6×N) moved one step on into ``out``, its window's slots
         shifted into ``u_next`` and ``jitter_next`` with a new newest step; returns its log
-        weights."""
+        weights. ``anchor``: the stored frame's offset at the anchor (None: zero)."""
         host, work = self._host, self._work
         chosen = None
         if first is None:
@@ -363,7 +370,7 @@ class LateRangeSteps:
         else:  # the oldest step's ranges have all arrived: the posterior weighed them
             weighed, acceleration = first
             particles, log_weights, chosen = resample_regularised(
-                particles, weighed, rng, self._parameters, work=work
+                particles, weighed, rng, self._parameters, work=work, offset=anchor
             )
             # Each particle's path follows its ancestor: its acceleration and its draw of
             # the navigation's noise.

@@ -38,8 +38,10 @@ pin a particle to a thin curved shell: in Cartesian coordinates the kernel's pul
 mean and its noise push particles off the shell, the next ranges remove them, and the cloud
 narrows across the line of sight at every resampling (``far_standoff``, 14 m: the RMS of
 √tr P_qq was 1.055 m against a per-run Cramér–Rao bound of 1.083 m, mean NEES 6.79 over 1000
-seeds). Along the shell the move keeps each particle's range. Where some particle lies at or
-behind the plane normal to ``u`` (a cloud around the vehicle, whose bearings would wrap),
+seeds). In range–bearing coordinates a particle's range moves only by the cloud's spread in
+range, which the ranges keep small, and it moves along the shell by the bearings' spread
+(a cloud on one shell stays on it). Where some particle lies at or behind the plane normal
+to ``u`` (a cloud around the vehicle, whose bearings would wrap),
 the step uses the Cartesian kernel.
 
 Initialisation
@@ -486,11 +488,13 @@ def resample_regularised(
     weights: np.ndarray | None = None,
     moments: tuple[np.ndarray, np.ndarray] | None = None,
     work: Workspace | None = None,
+    offset: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """When the effective sample size is below the threshold: systematic resampling, then the
-    shrinkage kernel (equal weights after). Returns the particles, their log weights and the
-    chosen ancestors' indices (None when it did not resample), so a particle's own data (its
-    path's accelerations) can follow it.
+    shrinkage kernel (equal weights after; with ``kernel: range_bearing`` about the vehicle,
+    the particles being relative states less ``offset``, 6, default zero). Returns the
+    particles, their log weights and the chosen ancestors' indices (None when it did not
+    resample), so a particle's own data (its path's accelerations) can follow it.
 
     A caller that has them passes ``weights`` (``exp(log_weights)``) and ``moments``
     (:func:`weighted_moments` of those weights): the same numbers, not computed again.
@@ -510,11 +514,11 @@ def resample_regularised(
     log_weights = np.full(n, -math.log(n))
     frame = None
     if h > 0.0 and parameters.kernel == "range_bearing":
-        frame = range_bearing_frame(source, weights)
-    if frame is not None:  # the particles are relative here (no stored-frame offset)
-        local = to_range_bearing(source, frame)
+        frame = range_bearing_frame(source, weights, offset)
+    if frame is not None:
+        local = to_range_bearing(source, frame, offset)
         moved = shrinkage_kernel(local[:, chosen], *weighted_moments(local, weights), h, rng)
-        particles[...] = from_range_bearing(moved, frame)
+        particles[...] = from_range_bearing(moved, frame, offset)
     elif h > 0.0:
         particles = shrinkage_kernel(particles, *moments, h, rng, work)
     return particles, log_weights, chosen

@@ -128,13 +128,13 @@ class RawRangeOptions(EstimatorOptions):
     # The regularisation kernel's bandwidth, times the Gaussian kernel's optimal one (0: none).
     particle_bandwidth_scale: float = 1.0
     # The coordinates the kernel moves particles in: cartesian, or range_bearing (about the
-    # cloud's mean direction; each particle keeps its range along the shell the ranges pin it
-    # to; see drake_uuv/models/particle_filter.py). far_standoff (14 m), seeds 0-999: the
-    # Cartesian kernel leaves the cloud too narrow across the line of sight (mean NEES 6.79
-    # at 5000 particles, 6.48 at 10 000); range_bearing gives 6.34 at 5000 and 6.18 at 10 000,
-    # in the band [5.79, 6.22]. 1000 seeds at 5000 particles (docs/results/robustness.md,
-    # rows pf and pf2): paper 6.19 -> 6.18, the LQR world-frame law 6.38 -> 6.20 (into the
-    # band), noisy_sonar 6.14 -> 6.07. Refused with late ranges and error_model: modelled.
+    # cloud's mean direction: a particle moves along the shell the ranges pin it to, and in
+    # range only by the cloud's spread in range; see drake_uuv/models/particle_filter.py).
+    # far_standoff (14 m), seeds 0-999: the Cartesian kernel leaves the cloud too narrow
+    # across the line of sight (mean NEES 6.79 at 5000 particles, 6.48 at 10 000);
+    # range_bearing gives 6.34 at 5000 and 6.18 at 10 000, in the band [5.79, 6.22]. 1000
+    # seeds at 5000 particles (docs/results/robustness.md, rows pf and pf2): paper 6.19 ->
+    # 6.18, the LQR world-frame law 6.38 -> 6.20 (into the band), noisy_sonar 6.14 -> 6.07.
     particle_kernel: str = "cartesian"
     # A due hand-over waits while the tick's raw ranges contradict the Gaussian it would start
     # from: their NIS under it beyond the χ² quantile of 1 − this (None: no such gate).

@@ -183,20 +183,6 @@ class Scenario:
         late = max(self.sonar.ping_offsets) > 0.0 or self.sonar.latency > 0.0
         if (
             late
-            and self.estimator.error_model == "modelled"
-            and getattr(self.estimator, "particle_kernel", "cartesian") != "cartesian"
-        ):
-            # The late ranges' cloud is resampled at its window's anchor, where the stored
-            # frame's offset from the vehicle is not kept: the kernel's bearings would not be
-            # the vehicle's.
-            fail(
-                "estimator.particle_kernel",
-                "must be cartesian with late ranges (sonar.ping_offsets, sonar.latency) and "
-                "error_model: modelled",
-                self.estimator.particle_kernel,
-            )
-        if (
-            late
             and isinstance(self.estimator, MarginalizedParticleFilter)
             and self.estimator.error_model == "modelled"
         ):

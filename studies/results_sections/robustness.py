@@ -103,9 +103,9 @@ the realistic scenario on both plants. The EKF runs twice: as the textbook filte
 with the ranges' second-order terms (`ekf2`: Gelb's truncated second-order filter, its term's
 variance counted over 7 updates, `--set estimator.second_order=full --set
 estimator.linearisation_correlation=7`); so does the UKF, as the textbook filter (`ukf`) and
-with its linearisation error's variance counted over 4 updates (`ukf2`); and in the paper's
-regime, under the LQR law and with noisy sonars, the particle filter with its regularisation
-kernel in range–bearing coordinates (`pf2`). A run is lost when the
+with its linearisation error's variance counted over 4 updates (`ukf2`); and, where the
+scenario's own filter does not have it, the particle filter with its regularisation kernel
+in range–bearing coordinates (`pf2`). A run is lost when the
 estimator-health monitor stopped it or its final position error exceeds {LOST_ERROR:g} m. A
 regime's filters take its scenario's particle options (at the far standoff, as
 `far_standoff.yaml`: {far_count} particles, the regularisation kernel in {far_kernel}
@@ -129,7 +129,7 @@ linearisation error counted as independent from update to update → over 4 upda
 estimator.linearisation_correlation=4`; its sigma points carry the second-order term already):
 {ukf_nees}; so counted {ukf_option}. The particle filter's, its regularisation kernel in
 Cartesian → range–bearing coordinates (`pf2`, `--set estimator.particle_kernel=range_bearing`:
-each particle keeps its range; `far_standoff` ships it, and with late ranges it is refused):
+the kernel moves particles along their range shells; `far_standoff` ships it):
 {pf_nees}; so moved {pf_option}.
 """
 

@@ -417,31 +417,46 @@ def test_a_cloud_drawn_at_28_m_keeps_its_rank() -> None:
         assert kept.metrics["final_position_error"][0] < 5.0, estimator
 
 
-def test_the_range_bearing_kernel_is_refused_with_late_ranges() -> None:
-    """The late ranges' cloud is resampled at its window's anchor, whose offset from the
-    vehicle (the kernel's centre) is not kept: refused in one line naming the field, when the
-    scenario is loaded and when the filter is built; with ``error_model: ideal`` it builds."""
-    from drake_uuv.estimators import EstimatorSetting
-    from drake_uuv.models.timing import PingSchedule
-    from drake_uuv.scenario import ParticleFilter
-
-    with pytest.raises(
-        ScenarioError,
-        match=r"^estimator\.particle_kernel: must be cartesian with late ranges "
-        r"\(sonar\.ping_offsets, sonar\.latency\) and error_model: modelled, got 'range_bearing'$",
-    ):
-        load_scenario("realistic", ["estimator.particle_kernel=range_bearing"])
-    load_scenario(
-        "realistic", ["estimator.particle_kernel=range_bearing", "estimator.error_model=ideal"]
+def test_the_late_ranges_window_centres_the_range_bearing_kernel_on_the_vehicle(monkeypatch):
+    """The realistic scenario (late ranges, navigated motion) on the kinematic plant: every
+    resampling of the window's anchor cloud with the range-bearing kernel is told the
+    navigated vehicle state at a past tick (the anchor), about which the cloud's mean lies at
+    the true relative distance there; the vehicle moves, so the stored frame alone would not
+    do."""
+    from drake_uuv.estimators import particle_window
+    from drake_uuv.models.particle_filter import (
+        normalised,
+        range_bearing_frame,
+        resample_regularised,
     )
-    timed = EstimatorSetting(
-        time_step=T, acceleration_covariance=W, noise_variances=ETA_UNEQUAL, samples_per_step=10,
-        baseline_B=np.array([0.0, 0.0, 1.0]), ping_schedule=PingSchedule(T, (0.1, 0.3), 0.6),
-    )  # fmt: skip
-    config = ParticleFilter(particle_kernel="range_bearing", particle_count=100)
-    with pytest.raises(
-        ValueError,
-        match=r"^parameters\.kernel: must be cartesian with late ranges, got 'range_bearing'$",
-    ):
-        RangeFilter(config, setting=timed)
-    RangeFilter(ParticleFilter(particle_count=100), setting=timed)  # the Cartesian kernel builds
+
+    calls = []
+
+    def recorded(particles, log_weights, rng, parameters, **options):
+        offset = np.array(options["offset"])  # a view of the window's arrays
+        if range_bearing_frame(particles, normalised(log_weights), offset) is not None:
+            calls.append((particles.copy(), offset))
+        return resample_regularised(particles, log_weights, rng, parameters, **options)
+
+    monkeypatch.setattr(particle_window, "resample_regularised", recorded)
+    overrides = [
+        "plant=KinematicUuv", "steps=80", "steady_state_start=0", "estimator.particle_count=500",
+        "estimator.particle_kernel=range_bearing", "estimator.particle_resample_threshold=0.95",
+    ]  # fmt: skip
+    result = ClosedLoopSimulation(load_scenario("realistic", overrides)).run()
+    log = result.log
+    navigated = np.hstack([log["p_WU_nav"], log["v_WU_nav"]])
+    distance = np.linalg.norm(log["p_WT"] - log["p_WU"], axis=1)
+    assert len(calls) > 10
+    ticks = []
+    for particles, offset in calls:
+        tick = np.flatnonzero(np.all(navigated == offset, axis=1))
+        assert tick.size == 1, offset  # the navigated state of one past tick
+        ticks.append(tick[0])
+        mean_range = np.linalg.norm(particles[:3].mean(axis=1) + offset[:3])
+        assert abs(mean_range - distance[tick[0]]) < 1.0, (mean_range, distance[tick[0]])
+    # The anchor is one tick back (sonar 2 pings 0.25 s late, its range arrives 0.2 s later:
+    # within the next step), and the last periodic update is at the next-to-last tick.
+    assert np.array_equal(np.diff(ticks), np.ones(len(ticks) - 1))
+    assert ticks[-1] == len(navigated) - 3
+    assert np.ptp(navigated[:, :3], axis=0).max() > 1.0  # the vehicle moved

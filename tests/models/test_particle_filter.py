@@ -323,6 +323,14 @@ def test_the_numpy_range_bearing_kernel_keeps_each_particle_s_range():
     variance_tolerance = 5.0 * math.sqrt(2.0 / count) * scale**2
     assert np.all(np.abs(np.diag(after[1]) - np.diag(before[1])) <= variance_tolerance + 1e-24)
     assert parameters.kernel == "cartesian"  # the default
+    # Stored less an offset (the late ranges' window): the ranges about the offset are kept.
+    offset = np.array([3.0, -1.0, 0.5, 0.1, 0.0, 0.0])
+    stored = particles - offset[:, None]
+    chosen_parameters = ParticleFilterParameters(count, 1.0, kernel="range_bearing")
+    out, _, chosen = resample_regularised(
+        stored, log_weights, np.random.default_rng(6), chosen_parameters, offset=offset
+    )
+    assert_allclose(np.linalg.norm(out[:3] + offset[:3, None], axis=0), radius, rtol=1e-13)
 
 
 def test_tempering_keeps_the_floor_with_the_largest_power_of_the_likelihood():

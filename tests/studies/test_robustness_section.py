@@ -74,7 +74,7 @@ def test_the_section_names_the_shipped_scenarios_out_of_band_and_where_the_terms
     assert "with them it stays out of band in `realistic-auv` (above)." in text
     assert "so counted it stays out of band in `lqr` (below) and `far` (above)." in text
     # The particle filter's kernel in the three regimes that run it, in band in each.
-    assert "refused): paper 6 → 6; lqr 6 → 6; noisy 6.4 → 6.1; so moved it is in band" in text
+    assert "ships it): paper 6 → 6; lqr 6 → 6; noisy 6.4 → 6.1; realistic-auv 6 → 6;" in text
     # Every second-order row in band: the sentence says so.
     compared = [(v, result([1.0] * 1000, 6.0)) for v in variants]
     text = " ".join(section_module.section(tmp_path, tmp_path, 1000, {}).split())

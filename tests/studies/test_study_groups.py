@@ -53,7 +53,7 @@ def test_the_groups_in_order_and_the_paper_s_three_run_by_default():
 def test_every_variant_loads_and_variant_names_are_unique():
     variants = [v for group in GROUPS.values() for v in group.variants()]
     names = [variant.name for variant in variants]
-    assert len(names) == len(set(names)) == 103 + 136 + 38
+    assert len(names) == len(set(names)) == 103 + 136 + 40
     for variant in variants:
         # Raises ScenarioError if not.
         load_scenario(variant.scenario or "paper", list(variant.overrides))
@@ -277,10 +277,12 @@ def test_the_robustness_group_runs_the_consistency_options_and_the_lqr_law_in_ev
     assert rows["robust-lqr-pf"].runs(1000) == 1000
     ukf2 = load_scenario("paper", list(rows["robust-paper-ukf2"].overrides))
     assert ukf2.estimator.linearisation_correlation == 4
-    # The range-bearing kernel where the ranges arrive at their tick and the scenario's own
-    # filter does not have it already.
+    # The range-bearing kernel where the scenario's own filter does not have it already.
     for regime in regimes:
-        assert (f"robust-{regime}-pf2" in rows) == (regime in ("paper", "lqr", "noisy"))
+        assert (f"robust-{regime}-pf2" in rows) == (regime != "far")
+    realistic = load_scenario("realistic", list(rows["robust-realistic-auv-pf2"].overrides))
+    assert realistic.estimator.particle_kernel == "range_bearing"
+    assert realistic.estimator.particle_count == 20_000  # the scenario's own filter otherwise
     for regime, scenario in (("paper", "paper"), ("lqr", "paper"), ("noisy", "noisy_sonar")):
         pf2 = load_scenario(scenario, list(rows[f"robust-{regime}-pf2"].overrides))
         assert pf2.estimator.particle_kernel == "range_bearing"
