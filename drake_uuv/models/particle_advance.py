@@ -273,12 +273,20 @@ def _prepare_resampling(
 
 @njit(fastmath=CONTRACT)
 def _range_bearing_cloud(
-    cloud: np.ndarray, offset: np.ndarray, weights: np.ndarray, E: np.ndarray, local: np.ndarray
+    on: bool,
+    cloud: np.ndarray,
+    offset: np.ndarray,
+    weights: np.ndarray,
+    E: np.ndarray,
+    local: np.ndarray,
 ) -> float:  # pragma: no cover - compiled
-    """The cloud (N×6, stored) in range–bearing coordinates in ``local``, the frame's rotation
-    in ``E`` (first row: the weighted mean position's direction); returns the mean range, or 0
-    where the Cartesian kernel applies (a mean at the origin, or a particle at or behind the
-    plane normal to that direction)."""
+    """With ``on``, the cloud (N×6, stored) in range–bearing coordinates in ``local``, the
+    frame's rotation in ``E`` (first row: the weighted mean position's direction); returns the
+    mean range, or 0 where the Cartesian kernel applies (not ``on``, a mean at the origin, or
+    a particle at or behind the plane normal to that direction): > 0, the kernel moves the
+    range–bearing coordinates."""
+    if not on:
+        return 0.0
     n = cloud.shape[0]
     m = np.zeros(3)
     for i in range(n):
@@ -311,18 +319,27 @@ def _range_bearing_cloud(
 
 
 @njit(fastmath=CONTRACT)
-def _from_range_bearing(
-    y: np.ndarray, E: np.ndarray, radius: float, offset: np.ndarray, p: np.ndarray
+def _kernel_from_range_bearing(
+    e: np.ndarray,
+    shrink: float,
+    y: np.ndarray,
+    E: np.ndarray,
+    radius: float,
+    offset: np.ndarray,
+    p: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """A particle's range–bearing coordinates ``y`` back in the stored frame, in ``p``."""
-    azimuth, elevation = y[1] / radius, y[2] / radius
-    d0 = y[0] * math.cos(elevation) * math.cos(azimuth)
-    d1 = y[0] * math.cos(elevation) * math.sin(azimuth)
-    d2 = y[0] * math.sin(elevation)
+    """A particle's kernel move ``e + shrink · y`` (its draw and its range–bearing coordinates
+    ``y``) back in the stored frame, in ``p`` (``e`` is overwritten)."""
+    for k in range(6):
+        e[k] += shrink * y[k]
+    azimuth, elevation = e[1] / radius, e[2] / radius
+    d0 = e[0] * math.cos(elevation) * math.cos(azimuth)
+    d1 = e[0] * math.cos(elevation) * math.sin(azimuth)
+    d2 = e[0] * math.sin(elevation)
     for k in range(3):
         p[k] = E[0, k] * d0 + E[1, k] * d1 + E[2, k] * d2 - offset[k]
     for k in range(3, 6):
-        p[k] = y[k]
+        p[k] = e[k]
 
 
 @njit(fastmath=CONTRACT)
@@ -355,18 +372,14 @@ def _advance_run(
     """One run of :func:`cloud_advance` from its cloud ``source`` (N×6, stored, read-only) or
     with ``use_drawn`` its ``drawn`` cloud (one compiled function for both), log weights ``lw``
     and ``weights`` (with ``have_moments`` their ``mean`` and ``cov``): resampled when
-    degenerate, moved into ``target``; ``lw`` and ``weights`` become the predicted ones. With
-    ``range_bearing`` the kernel acts on the cloud's range–bearing coordinates (about its
-    frame, relative: stored plus ``offset``) in ``local`` (N×6 work space) where it can."""
+    degenerate, moved into ``target``; ``lw``, ``weights`` become the predicted ones. With
+    ``range_bearing`` the kernel moves range–bearing coordinates (``local``, N×6) if it can."""
     n = source.shape[0]
-    zero = np.zeros(6)
-    shift = np.empty(6)
+    zero, shift = np.zeros(6), np.empty(6)
     shrink = math.sqrt(1.0 - bandwidth * bandwidth)
     resample = effective_sample_size(weights) < resample_threshold * n
-    E = np.empty((3, 3))
-    radius = 0.0  # > 0: the kernel moves the range–bearing coordinates
-    if resample and bandwidth > 0.0 and range_bearing:
-        radius = _range_bearing_cloud(drawn if use_drawn else source, offset, weights, E, local)
+    on, E = resample and bandwidth > 0.0 and range_bearing, np.empty((3, 3))
+    radius = _range_bearing_cloud(on, drawn if use_drawn else source, offset, weights, E, local)
     if resample:
         if radius > 0.0:  # the coordinates' own moments (``mean``, ``cov``: the posterior's)
             source, drawn, use_drawn, have_moments = local, local, False, False
@@ -376,26 +389,15 @@ def _advance_run(
             chosen,
         )  # fmt: skip
         for i in range(n):
-            lw[i] = -math.log(n)
-            weights[i] = 1.0 / n
-    jittered = False
-    for k in range(6):
-        for m in range(6):
-            jittered |= jitter[k, m] != 0.0
+            lw[i], weights[i] = -math.log(n), 1.0 / n
+    jittered = np.any(jitter != 0.0)
     half, p, e = 0.5 * t * t, np.empty(6), np.empty(6)
     for i in range(n):
         row = chosen[i] if resample else i
-        if use_drawn:
-            for k in range(6):
-                p[k] = drawn[row, k]
-        else:
-            for k in range(6):
-                p[k] = source[row, k]
+        p[:] = drawn[row] if use_drawn else source[row]
         if radius > 0.0:
             _draw_gaussian(key, i, KERNEL_SLOT, shift, L, zero, e)
-            for k in range(6):
-                e[k] += shrink * local[row, k]
-            _from_range_bearing(e, E, radius, offset, p)
+            _kernel_from_range_bearing(e, shrink, local[row], E, radius, offset, p)
         elif resample and bandwidth > 0.0:
             _draw_gaussian(key, i, KERNEL_SLOT, shift, L, zero, e)
             for k in range(6):

@@ -32,17 +32,7 @@ cloud's mean and covariance. ``h`` is ``bandwidth_scale`` times the Gaussian ker
 bandwidth ``(4 / ((n + 2) N))^{1/(n+4)}`` (Musso et al., n = 6), or none when the scale is 0.
 
 ``kernel: range_bearing`` applies the same move in range–bearing coordinates about the cloud's
-weighted mean direction ``u`` (range ``|q|``, and azimuth and elevation about ``u`` times the
-mean range ``|q̄|``; the velocity as it is), then maps the particles back. Far out the ranges
-pin a particle to a thin curved shell: in Cartesian coordinates the kernel's pull toward the
-mean and its noise push particles off the shell, the next ranges remove them, and the cloud
-narrows across the line of sight at every resampling (``far_standoff``, 14 m: the RMS of
-√tr P_qq was 1.055 m against a per-run Cramér–Rao bound of 1.083 m, mean NEES 6.79 over 1000
-seeds). In range–bearing coordinates a particle's range moves only by the cloud's spread in
-range, which the ranges keep small, and it moves along the shell by the bearings' spread
-(a cloud on one shell stays on it). Where some particle lies at or behind the plane normal
-to ``u`` (a cloud around the vehicle, whose bearings would wrap),
-the step uses the Cartesian kernel.
+mean direction (:mod:`drake_uuv.models.range_bearing`).
 
 Initialisation
 --------------
@@ -56,12 +46,8 @@ page ``docs/handover.md``.
 
 Work arrays
 -----------
-A step's temporaries of a 6×N cloud are 240 kB each at N = 5000: numpy allocates each afresh
-and glibc maps (or trims and regrows) blocks that large on every allocation, so a step
-faulted its pages in again each time (about 270 page faults a step of the paper's run, a
-third of its cost). Every step takes an optional :class:`Workspace` and writes its
-temporaries there; without one it allocates them, with the same arithmetic in the same
-order, so both give the same bits.
+Every step takes an optional :class:`~drake_uuv.models.particle_workspace.Workspace` for its
+temporaries (:mod:`drake_uuv.models.particle_workspace`), with the same bits as without.
 """
 
 from __future__ import annotations
@@ -72,43 +58,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from drake_uuv.models.measurement import batch_ranges
+from drake_uuv.models.particle_workspace import Workspace, work_rows
+from drake_uuv.models.range_bearing import from_range_bearing, range_bearing_frame, to_range_bearing
 
 STATE_SIZE = 6
 
 #: The regularisation kernel's coordinates (see the module's text).
 KERNELS = ("cartesian", "range_bearing")
-
-
-class Workspace:
-    """Work arrays for the steps of a cloud of ``count`` particles, reused from step to step.
-
-    ``arrays`` arrays of 6×``count``; a step uses the first four, a caller may keep the rest
-    for its own (``workspace[i]``). It serves one call at a time: each system holds its own
-    (a study builds its systems once per thread), and no step returns one of its arrays.
-    """
-
-    def __init__(self, count: int, arrays: int = 4) -> None:
-        self._arrays = list(np.empty((arrays, STATE_SIZE, count)))
-        # The views a step asks for, made once: each costs a microsecond, about 40 a step.
-        self._rows = [[a[:rows] for rows in range(STATE_SIZE + 1)] for a in self._arrays]
-
-    @property
-    def count(self) -> int:
-        return self._arrays[0].shape[1]
-
-    def __getitem__(self, index: int) -> np.ndarray:
-        return self._arrays[index]
-
-    def rows(self, index: int, rows: int) -> np.ndarray:
-        """The first ``rows`` rows of array ``index``."""
-        return self._rows[index][rows]
-
-
-def _buffer(work: Workspace | None, index: int, rows: int, count: int) -> np.ndarray:
-    """The first ``rows`` rows of work array ``index``, or a new array without a workspace."""
-    if work is None:
-        return np.empty((rows, count))
-    return work.rows(index, rows)
 
 
 @dataclass(frozen=True)
@@ -193,8 +149,8 @@ def weighted_moments(
     """
     rows, count = particles.shape
     mean = particles @ weights
-    centred = np.subtract(particles, mean[:, None], out=_buffer(work, 0, rows, count))
-    weighted = np.multiply(centred, weights, out=_buffer(work, 1, rows, count))
+    centred = np.subtract(particles, mean[:, None], out=work_rows(work, 0, rows, count))
+    weighted = np.multiply(centred, weights, out=work_rows(work, 1, rows, count))
     cov = weighted @ centred.T
     return mean, 0.5 * (cov + cov.T)
 
@@ -218,7 +174,7 @@ def weigh(
     nu = z - z_hat
     nis = float(nu @ np.linalg.solve(S, nu))
     rows, count = predicted.shape
-    residual = np.subtract(predicted, z[:, None], out=_buffer(work, 0, rows, count))
+    residual = np.subtract(predicted, z[:, None], out=work_rows(work, 0, rows, count))
     if noise.ndim == 2:  # a full covariance: −½ rᵀ R⁻¹ r through its Cholesky factor
         whitened = np.linalg.solve(np.linalg.cholesky(noise), residual)
         log_posterior = log_weights - 0.5 * np.einsum("ij,ij->j", whitened, whitened)
@@ -311,7 +267,7 @@ def range_terms(
     independent = R.shape == (1, 1) or (R[0, 1] == 0.0 and R[1, 0] == 0.0)
     noise = np.diag(R) if independent else R
     # Work array 3: weigh uses 0 and 1, and the particles may be in 2 (a window's step).
-    predicted = particle_ranges(particles, q_s, _buffer(work, 3, 2, particles.shape[1]))
+    predicted = particle_ranges(particles, q_s, work_rows(work, 3, 2, particles.shape[1]))
     return z, noise, predicted if both else predicted[rows]
 
 
@@ -372,72 +328,11 @@ def shrinkage_kernel(
     """
     rows, count = particles.shape
     a = math.sqrt(1.0 - h * h)
-    moved = np.multiply(particles, a, out=_buffer(work, 2, rows, count))
+    moved = np.multiply(particles, a, out=work_rows(work, 2, rows, count))
     moved += ((1.0 - a) * np.asarray(mean, dtype=float))[:, None]
-    draws = rng.standard_normal(out=_buffer(work, 3, rows, count))
-    moved += np.matmul(h * _cholesky_psd(cov), draws, out=_buffer(work, 1, rows, count))
+    draws = rng.standard_normal(out=work_rows(work, 3, rows, count))
+    moved += np.matmul(h * _cholesky_psd(cov), draws, out=work_rows(work, 1, rows, count))
     return moved
-
-
-def range_bearing_frame(
-    particles: np.ndarray, weights: np.ndarray, offset: np.ndarray | None = None
-) -> tuple[np.ndarray, float] | None:
-    """The range–bearing kernel's frame of a cloud (6×N, stored frame: relative less
-    ``offset``): the rotation ``E`` whose first row is the weighted mean position's direction,
-    and the mean range ``|q̄|``; None where the Cartesian kernel applies instead (a mean at the
-    origin, or a particle at or behind the plane normal to that direction)."""
-    q = particles[:3] + (0.0 if offset is None else np.asarray(offset, float)[:3, None])
-    mean = q @ weights
-    radius = float(np.linalg.norm(mean))
-    if not radius > 0.0:
-        return None
-    u = mean / radius
-    # The second axis: the component of the world axis least aligned with u, normalised.
-    axis = np.array([0.0, 0.0, 1.0]) if abs(u[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    w = np.cross(u, axis)
-    w /= np.linalg.norm(w)
-    E = np.stack([u, np.cross(w, u), w])
-    if not np.all(u @ q > 0.0):
-        return None
-    return E, radius
-
-
-def to_range_bearing(
-    particles: np.ndarray, frame: tuple[np.ndarray, float], offset: np.ndarray | None = None
-) -> np.ndarray:
-    """Particles (6×N, stored frame) in the kernel's coordinates ``[r, r̄ α, r̄ β, ϑ]``:
-    range, azimuth ``α`` and elevation ``β`` about the frame's first axis times the mean range
-    ``r̄``, and the velocity as it is."""
-    E, radius = frame
-    offset = np.zeros(STATE_SIZE) if offset is None else np.asarray(offset, float)
-    d = E @ (particles[:3] + offset[:3, None])
-    r = np.sqrt(np.sum(d * d, axis=0))
-    local = np.empty_like(particles)
-    local[0] = r
-    local[1] = radius * np.arctan2(d[1], d[0])
-    local[2] = radius * np.arcsin(d[2] / r)
-    local[3:] = particles[3:]
-    return local
-
-
-def from_range_bearing(
-    local: np.ndarray, frame: tuple[np.ndarray, float], offset: np.ndarray | None = None
-) -> np.ndarray:
-    """The inverse of :func:`to_range_bearing`: particles (6×N) in the stored frame."""
-    E, radius = frame
-    offset = np.zeros(STATE_SIZE) if offset is None else np.asarray(offset, float)
-    azimuth, elevation = local[1] / radius, local[2] / radius
-    d = local[0] * np.stack(
-        [
-            np.cos(elevation) * np.cos(azimuth),
-            np.cos(elevation) * np.sin(azimuth),
-            np.sin(elevation),
-        ]
-    )
-    particles = np.empty_like(local)
-    particles[:3] = E.T @ d - offset[:3, None]
-    particles[3:] = local[3:]
-    return particles
 
 
 def pf_predict(
@@ -470,12 +365,12 @@ def pf_predict(
         particles, log_weights, rng, parameters, weights=weights, moments=moments, work=work
     )
     # x⁺ = A x + B (a_W − ū): the known acceleration once, the target's per particle.
-    draws = rng.standard_normal(out=_buffer(work, 3, 3, n))
+    draws = rng.standard_normal(out=work_rows(work, 3, 3, n))
     L = np.linalg.cholesky(np.asarray(W, dtype=float)) if W_factor is None else W_factor
-    noise = np.matmul(L, draws, out=_buffer(work, 1, 3, n))
+    noise = np.matmul(L, draws, out=work_rows(work, 1, 3, n))
     moved = np.matmul(A, particles, out=np.empty((STATE_SIZE, n)) if out is None else out)
     moved += (B @ np.asarray(a_W, dtype=float).reshape(3))[:, None]
-    moved -= np.matmul(B, noise, out=_buffer(work, 0, STATE_SIZE, n))
+    moved -= np.matmul(B, noise, out=work_rows(work, 0, STATE_SIZE, n))
     return moved, log_weights, chosen is not None
 
 
@@ -510,7 +405,7 @@ def resample_regularised(
     chosen = systematic_resample(weights, float(rng.random()))
     source = particles
     # "clip": the indices are in range, and numpy buffers ``out`` under the default "raise".
-    particles = np.take(particles, chosen, axis=1, out=_buffer(work, 2, rows, n), mode="clip")
+    particles = np.take(particles, chosen, axis=1, out=work_rows(work, 2, rows, n), mode="clip")
     log_weights = np.full(n, -math.log(n))
     frame = None
     if h > 0.0 and parameters.kernel == "range_bearing":

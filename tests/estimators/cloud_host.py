@@ -40,6 +40,7 @@ class CloudHost(LeafSystem):
         time_step: float = T,
         acceleration_covariance: np.ndarray = W,
         range_covariance: np.ndarray = R,
+        kernel: str = "cartesian",
     ) -> None:
         super().__init__()
         self.batch_size = batch_size
@@ -58,7 +59,9 @@ class CloudHost(LeafSystem):
         )
         self._x_index = self.DeclareDiscreteState(np.zeros(6 * batch_size))
         self._P_index = self.DeclareDiscreteState(np.zeros(36 * batch_size))
-        parameters = ParticleFilterParameters(count=count, resample_threshold=threshold)
+        parameters = ParticleFilterParameters(
+            count=count, resample_threshold=threshold, kernel=kernel
+        )
         self.cloud = ParticleCloud(self, parameters, range_covariance, batch_size=batch_size)
         self.DeclareVectorOutputPort("x_hat", 6 * batch_size, self._calc_x)
         self.DeclareVectorOutputPort("P_hat", 36 * batch_size, self._calc_P)
@@ -171,12 +174,14 @@ def reference_step(
     from drake_uuv.models import particle_random as kernels
     from drake_uuv.models.particle_filter import (
         effective_sample_size,
-        from_range_bearing,
         normalised,
-        range_bearing_frame,
         systematic_resample,
-        to_range_bearing,
         weighted_moments,
+    )
+    from drake_uuv.models.range_bearing import (
+        from_range_bearing,
+        range_bearing_frame,
+        to_range_bearing,
     )
 
     A, B, W = model

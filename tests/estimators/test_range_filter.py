@@ -424,11 +424,8 @@ def test_the_late_ranges_window_centres_the_range_bearing_kernel_on_the_vehicle(
     the true relative distance there; the vehicle moves, so the stored frame alone would not
     do."""
     from drake_uuv.estimators import particle_window
-    from drake_uuv.models.particle_filter import (
-        normalised,
-        range_bearing_frame,
-        resample_regularised,
-    )
+    from drake_uuv.models.particle_filter import normalised, resample_regularised
+    from drake_uuv.models.range_bearing import range_bearing_frame
 
     calls = []
 

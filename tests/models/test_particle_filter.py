@@ -288,11 +288,8 @@ def test_the_numpy_range_bearing_kernel_keeps_each_particle_s_range():
     on the sphere |q| = 14 m keeps every particle's range exactly and the cloud's moments in
     its range-bearing coordinates within their standard errors; the Cartesian kernel leaves
     the shell."""
-    from drake_uuv.models.particle_filter import (
-        range_bearing_frame,
-        resample_regularised,
-        to_range_bearing,
-    )
+    from drake_uuv.models.particle_filter import resample_regularised
+    from drake_uuv.models.range_bearing import range_bearing_frame, to_range_bearing
 
     rng = np.random.default_rng(5)
     count, radius = 20_000, 14.0

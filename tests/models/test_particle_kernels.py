@@ -270,7 +270,7 @@ def test_a_cloud_around_the_vehicle_takes_the_cartesian_kernel():
 def test_range_bearing_coordinates_in_closed_form_and_back():
     """A particle at the mean direction turned by φ toward the frame's second axis and θ
     toward its third has coordinates [r, r̄ φ, r̄ θ]; the map back is the inverse."""
-    from drake_uuv.models.particle_filter import (
+    from drake_uuv.models.range_bearing import (
         from_range_bearing,
         range_bearing_frame,
         to_range_bearing,
