@@ -293,8 +293,9 @@ class LateRangeSteps:
             u = self.accelerations(context)
             jitter = self.jitter(context)
             first = self._posterior.Eval(context)[5]
-            # The range-bearing kernel's centre, the vehicle at each anchor: the stored frame
-            # is the relative state less the navigated state there (navigated motion), or it.
+            # The range-bearing kernel's centre is the vehicle at each anchor: with navigated
+            # motion the stored frame is the relative state less the navigated state there
+            # (else the relative state itself).
             if self._parameters.kernel == "range_bearing" and host.error_model.navigated_motion:
                 anchors = self._window_steps(context)[0].start
         x, P = np.full((B, 6), np.nan), np.full((B, 6, 6), np.nan)

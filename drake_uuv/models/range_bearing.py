@@ -13,8 +13,8 @@ narrows across the line of sight at every resampling (``far_standoff``, 14 m: th
 seeds). In range–bearing coordinates a particle's range moves only by the cloud's spread in
 range, which the ranges keep small, and it moves along the shell by the bearings' spread
 (a cloud on one shell stays on it). Where some particle lies at or behind the plane normal
-to ``u`` (a cloud around the vehicle, whose bearings would wrap),
-the step uses the Cartesian kernel.
+to ``u`` (a cloud around the vehicle, whose bearings would wrap), the step uses the
+Cartesian kernel.
 
 The coordinates of a particle (relative position ``q``, stored less an offset): its range
 ``|q|``, and its azimuth and elevation about the frame's first axis (the weighted mean
@@ -23,8 +23,6 @@ metres or metres a second; the velocity is kept as it is.
 """
 
 import numpy as np
-
-STATE_SIZE = 6
 
 
 def range_bearing_frame(
@@ -57,7 +55,7 @@ def to_range_bearing(
     range, azimuth ``α`` and elevation ``β`` about the frame's first axis times the mean range
     ``r̄``, and the velocity as it is."""
     E, radius = frame
-    offset = np.zeros(STATE_SIZE) if offset is None else np.asarray(offset, float)
+    offset = np.zeros(len(particles)) if offset is None else np.asarray(offset, float)
     d = E @ (particles[:3] + offset[:3, None])
     r = np.sqrt(np.sum(d * d, axis=0))
     local = np.empty_like(particles)
@@ -73,7 +71,7 @@ def from_range_bearing(
 ) -> np.ndarray:
     """The inverse of :func:`to_range_bearing`: particles (6×N) in the stored frame."""
     E, radius = frame
-    offset = np.zeros(STATE_SIZE) if offset is None else np.asarray(offset, float)
+    offset = np.zeros(len(local)) if offset is None else np.asarray(offset, float)
     azimuth, elevation = local[1] / radius, local[2] / radius
     d = local[0] * np.stack(
         [

@@ -129,7 +129,7 @@ class RawRangeOptions(EstimatorOptions):
     particle_bandwidth_scale: float = 1.0
     # The coordinates the kernel moves particles in: cartesian, or range_bearing (about the
     # cloud's mean direction: a particle moves along the shell the ranges pin it to, and in
-    # range only by the cloud's spread in range; see drake_uuv/models/particle_filter.py).
+    # range only by the cloud's spread in range; see drake_uuv/models/range_bearing.py).
     # far_standoff (14 m), seeds 0-999: the Cartesian kernel leaves the cloud too narrow
     # across the line of sight (mean NEES 6.79 at 5000 particles, 6.48 at 10 000);
     # range_bearing gives 6.34 at 5000 and 6.18 at 10 000, in the band [5.79, 6.22]. 1000
