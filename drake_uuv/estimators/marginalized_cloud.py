@@ -139,8 +139,8 @@ class MarginalizedCloud(ParticleCloud):
             self.velocity_covariance(context).copy(), reweigh, posterior[3], posterior[4],
             posterior[0], posterior[1], keys, moving, drawn, draw_x, draw_P, weighed, m.offset,
             m.z, m.used, m.q_s, m.R, self._time_step, acceleration, Q,
-            self._parameters.resample_threshold, self._parameters.bandwidth, out,
-            out_log_weights, out_Sigma, x, P,
+            self._parameters.resample_threshold, self._parameters.bandwidth,
+            self._parameters.kernel == "range_bearing", out, out_log_weights, out_Sigma, x, P,
         )  # fmt: skip
         discrete_state.set_value(self._live_index, moving.astype(float))
         if write_prediction:

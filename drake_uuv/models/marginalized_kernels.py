@@ -41,7 +41,9 @@ from numba import njit
 from drake_uuv.models.particle_advance import (
     _draw_gaussian,
     _draw_gaussian_call,
+    _kernel_from_range_bearing,
     _prepare_resampling,
+    _range_bearing_cloud,
     starting_weights,
 )
 from drake_uuv.models.particle_kernels import (
@@ -148,6 +150,7 @@ def marginalized_advance(
     Q: np.ndarray,
     resample_threshold: float,
     bandwidth: float,
+    range_bearing: bool,
     out: np.ndarray,
     out_log_weights: np.ndarray,
     out_Sigma: np.ndarray,
@@ -163,6 +166,7 @@ def marginalized_advance(
     ranges, drawn_cloud = np.empty((n, 2)), np.empty((n, 6))
     L, mean, c = np.empty((6, 6)), np.empty(6), np.empty(6)
     L_S, K, Sig = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    local = np.empty((n if range_bearing else 0, 6))
     for b in range(B):
         if not moving[b]:
             x[b, :] = math.nan
@@ -185,7 +189,8 @@ def marginalized_advance(
         marginal_gain(Sig, time_step, Q[b], L_S, K, out_Sigma[b])
         _move_run(
             particles[b], drawn_cloud, drawn[b], lw, weights, known, mean, cov, key, chosen, L, c,
-            time_step, L_S, K, resample_threshold, bandwidth, out[b], out_log_weights[b], x[b],
+            time_step, L_S, K, resample_threshold, bandwidth, range_bearing, offset[b], local,
+            out[b], out_log_weights[b], x[b],
             P[b],
         )  # fmt: skip
         for i in range(3):
@@ -243,20 +248,28 @@ def _move_run(
     K: np.ndarray,
     resample_threshold: float,
     bandwidth: float,
+    range_bearing: bool,
+    offset: np.ndarray,
+    local: np.ndarray,
     target: np.ndarray,
     out_log_weights: np.ndarray,
     x: np.ndarray,
     P: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """One run of :func:`marginalized_advance`: resampled when degenerate (ancestors and the
-    shrinkage kernel as the particle filter's), each particle's ``q`` drawn and ``m``
-    conditioned on the draw, into ``target``; ``lw``, ``weights`` become the predicted ones."""
+    shrinkage kernel as the particle filter's, with ``range_bearing`` in range–bearing
+    coordinates in ``local`` where it can), each particle's ``q`` drawn and ``m`` conditioned
+    on the draw, into ``target``; ``lw``, ``weights`` become the predicted ones."""
     n = source.shape[0]
-    zero = np.zeros(6)
-    shift = np.empty(6)
+    zero, shift = np.zeros(6), np.empty(6)
     shrink = math.sqrt(1.0 - bandwidth * bandwidth)
     resample = effective_sample_size(weights) < resample_threshold * n
+    on, E = resample and bandwidth > 0.0 and range_bearing, np.empty((3, 3))
+    radius = _range_bearing_cloud(on, drawn if use_drawn else source, offset, weights, E, local)
     if resample:
+        if radius > 0.0:  # the coordinates' own moments (``mean``, ``cov``: the posterior's)
+            source, drawn, use_drawn, have_moments = local, local, False, False
+            mean, cov = np.empty(6), np.empty((6, 6))
         _prepare_resampling(
             source, drawn, use_drawn, weights, have_moments, mean, cov, key, bandwidth, L, shift,
             chosen,
@@ -267,13 +280,11 @@ def _move_run(
     p, e = np.empty(6), np.empty(6)
     for i in range(n):
         row = chosen[i] if resample else i
-        if use_drawn:
-            for k in range(6):
-                p[k] = drawn[row, k]
-        else:
-            for k in range(6):
-                p[k] = source[row, k]
-        if resample and bandwidth > 0.0:
+        p[:] = drawn[row] if use_drawn else source[row]
+        if radius > 0.0:
+            _draw_gaussian(key, i, KERNEL_SLOT, shift, L, zero, e)
+            _kernel_from_range_bearing(e, shrink, local[row], E, radius, offset, p)
+        elif resample and bandwidth > 0.0:
             _draw_gaussian(key, i, KERNEL_SLOT, shift, L, zero, e)
             for k in range(6):
                 p[k] = e[k] + shrink * p[k]

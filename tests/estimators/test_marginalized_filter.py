@@ -111,7 +111,7 @@ def _run(marginal: bool, count: int, track, R, x0, P0, seed: int) -> np.ndarray:
             P0[None], no, np.zeros((1, 6)), z[None], np.ones((1, 2), dtype=bool), q_s[None],
             R[None], T, a[None],
         )  # fmt: skip
-        tail = (parameters.resample_threshold, parameters.bandwidth, out, out_lw)
+        tail = (parameters.resample_threshold, parameters.bandwidth, False, out, out_lw)
         if marginal:
             out_S = np.empty((1, 3, 3))
             Q = (Bu @ W @ Bu.T)[None]
@@ -120,7 +120,6 @@ def _run(marginal: bool, count: int, track, R, x0, P0, seed: int) -> np.ndarray:
             Sigma = out_S
         else:
             W_factor, jitter = np.linalg.cholesky(W), np.zeros((1, 6, 6))
-            tail = (*tail[:2], False, *tail[2:])  # the Cartesian kernel, as the marginal's
             cloud_advance(particles, lw, ~one if first else one, *common, W_factor, jitter, *tail,
                           xp, Pp)  # fmt: skip
         particles, lw = out, out_lw
@@ -155,7 +154,6 @@ def test_the_posterior_is_the_particle_filter_s_on_shared_seeds() -> None:
         ("estimator.linear_start_max_steps=0", r"^estimator\.linear_start_max_steps: must not be 0"),
         ("estimator.particle_resample_threshold=2", r"^estimator\.particle_resample_threshold: must be in \[0, 1\]"),
         ("estimator.particle_bandwidth_scale=-1", r"^estimator\.particle_bandwidth_scale: "),
-        ("estimator.particle_kernel=range_bearing", r"^estimator\.particle_kernel: must be cartesian for the marginalised filter, got 'range_bearing'$"),
     ],
 )  # fmt: skip
 def test_bad_options_fail_in_one_line_naming_the_field(override: str, message: str) -> None:

@@ -10,6 +10,7 @@ from drake_uuv.models.marginalized_kernels import (
     marginalized_advance,
 )
 from drake_uuv.models.motion import double_integrator
+from drake_uuv.models.particle_filter import ParticleFilterParameters
 from drake_uuv.models.particle_random import cloud_keys
 
 T = 0.5
@@ -50,8 +51,13 @@ def test_the_velocity_part_is_a_kalman_filter_given_the_true_position_track() ->
     assert np.linalg.norm(m - truth[3:]) < 5 * np.sqrt(np.trace(Sigma))
 
 
-def _advance(particles, log_weights, Sigma, keys, *, a, drawn=None, draw=None, threshold=0.0):
+def _advance(
+    particles, log_weights, Sigma, keys, *, a, drawn=None, draw=None, threshold=0.0, **kernel
+):
+    """``kernel``: ``bandwidth`` (0), ``range_bearing`` (False), ``offset`` (6, zero), ``Q``."""
     B, n, _ = particles.shape
+    offset = np.tile(kernel.get("offset", np.zeros(6)), (B, 1))
+    process = np.broadcast_to(kernel.get("Q", Q), (B, 6, 6)).copy()
     drawn = np.zeros(B, dtype=bool) if drawn is None else drawn
     draw_x, draw_P = (np.zeros((B, 6)), np.zeros((B, 6, 6))) if draw is None else draw
     out, out_lw, out_S = np.empty_like(particles), np.empty((B, n)), np.empty((B, 3, 3))
@@ -59,9 +65,10 @@ def _advance(particles, log_weights, Sigma, keys, *, a, drawn=None, draw=None, t
     no = np.zeros(B, dtype=bool)
     marginalized_advance(
         particles, log_weights, Sigma, no, log_weights.copy(), np.exp(log_weights), x, P, keys,
-        np.ones(B, dtype=bool), drawn, draw_x, draw_P, no, np.zeros((B, 6)), np.zeros((B, 2)),
-        np.zeros((B, 2), dtype=bool), np.zeros((B, 3)), np.ones((B, 2, 2)), T, a,
-        np.broadcast_to(Q, (B, 6, 6)).copy(), threshold, 0.0, out, out_lw, out_S, x, P,
+        np.ones(B, dtype=bool), drawn, draw_x, draw_P, no, offset, np.zeros((B, 2)),
+        np.zeros((B, 2), dtype=bool), np.zeros((B, 3)), np.ones((B, 2, 2)), T, a, process,
+        threshold, kernel.get("bandwidth", 0.0), kernel.get("range_bearing", False), out, out_lw,
+        out_S, x, P,
     )  # fmt: skip
     return out, out_lw, out_S, x, P
 
@@ -136,3 +143,29 @@ def test_a_nan_run_leaves_the_other_runs_bits_alone() -> None:
         )  # fmt: skip
         for got, want in zip(alone, batch, strict=True):
             np.testing.assert_array_equal(got[0], want[b])
+
+
+def test_the_range_bearing_kernel_keeps_a_shell_cloud_on_its_shell() -> None:
+    """Closed form: particles ``[q, m]`` on the sphere |q + offset| = 14 m, at rest, with
+    neither process noise nor velocity uncertainty, resampled and moved by the kernel alone:
+    in range-bearing coordinates each keeps its range exactly; in Cartesian ones it leaves."""
+    rng = np.random.default_rng(3)
+    n, radius = 1500, 14.0
+    offset = np.array([0.5, -0.2, 0.1, 0.0, 0.0, 0.0])
+    direction = np.array([-0.7, -0.7, 0.1]) + 0.15 * rng.standard_normal((n, 3))
+    q = radius * direction / np.linalg.norm(direction, axis=1, keepdims=True)
+    particles = (np.hstack([q, np.zeros((n, 3))]) - offset)[None]
+    log_weights = -np.log(rng.uniform(1.0, 2.0, (1, n)))
+    log_weights -= np.log(np.exp(log_weights).sum())
+    bandwidth = ParticleFilterParameters(count=n).bandwidth
+    ranges = {}
+    for range_bearing in (True, False):
+        out, out_lw, _, _, _ = _advance(
+            particles, log_weights, np.zeros((1, 3, 3)), cloud_keys(np.array([0.4])),
+            a=np.zeros((1, 3)), threshold=1.0, bandwidth=bandwidth,
+            range_bearing=range_bearing, offset=offset, Q=np.zeros((6, 6)),
+        )  # fmt: skip
+        np.testing.assert_allclose(out_lw, -np.log(n))  # it resampled
+        ranges[range_bearing] = np.linalg.norm(out[0, :, :3] + offset[:3], axis=1)
+    np.testing.assert_allclose(ranges[True], radius, rtol=1e-13)
+    assert np.std(ranges[False]) > 0.01
