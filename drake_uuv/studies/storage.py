@@ -98,10 +98,17 @@ def _defaults(value: Any) -> Any:
         current = getattr(value, field.name)
         if dataclasses.is_dataclass(current):
             tree[field.name] = _defaults(current)
-        elif field.default is not dataclasses.MISSING:
-            tree[field.name] = _Default(json.loads(json.dumps(field.default)))
+            continue
+        if field.default is not dataclasses.MISSING:
+            default = field.default
         elif field.default_factory is not dataclasses.MISSING:
-            tree[field.name] = _Default(json.loads(json.dumps(field.default_factory())))
+            default = field.default_factory()
+        else:
+            continue
+        try:  # a default that is not plain data (a dataclass, an array) is never assumed
+            tree[field.name] = _Default(json.loads(json.dumps(default)))
+        except TypeError:
+            continue
     return tree
 
 

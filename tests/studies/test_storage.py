@@ -174,3 +174,19 @@ def test_runs_csv_round_trips_every_float(tmp_path):
     write_outputs(tmp_path, np.array([5, 6]), ["a", "b"], values, {"runs": 2})
     assert (tmp_path / "runs.csv").read_text() == text
     assert json.loads((tmp_path / "summary.json").read_text()) == {"runs": 2}
+
+
+def test_a_default_that_is_not_plain_data_is_never_assumed():
+    """A field whose default is an array is left out of the defaults tree (a run stored
+    without it is then a difference), as is a field without a default."""
+    from drake_uuv.studies.storage import _Default, _defaults
+
+    @dataclasses.dataclass
+    class Section:
+        required: int
+        array: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(2))
+        plain: tuple[float, ...] = (1.0, 2.0)
+
+    tree = _defaults(Section(required=3))
+    assert set(tree) == {"plain"}
+    assert isinstance(tree["plain"], _Default) and tree["plain"].value == [1.0, 2.0]
