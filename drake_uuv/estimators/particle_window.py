@@ -176,7 +176,8 @@ class LateRangeSteps:
         """``(x, P, nis, log_weights, None, first)`` at this tick ((B, 6), (B, 6, 6), (B),
         (B, N), relative frame): each live run's cloud at the anchor stepped through the
         window, then this tick's ranges (NaN rows for the others); ``first`` (B) each run's
-        first step's log weights and acceleration when its ranges have all arrived (the
+        first step's log weights, acceleration and navigated start state when its ranges have
+        all arrived (the
         periodic update resamples with them), else None."""
         host = self._host
         B, n = self.batch_size, self._parameters.count
@@ -231,7 +232,7 @@ class LateRangeSteps:
             )  # fmt: skip
             nis_total += new_nis
             if first is None and j >= D:
-                first = (log_weights, step.acceleration)
+                first = (log_weights, step.acceleration, step.start)
         prior, posterior = self._weights
         if ranges.valid.any():  # this tick's own pings (no latency, at the tick)
             mean = np.empty(STATE_SIZE)
@@ -286,18 +287,12 @@ class LateRangeSteps:
             )
             Q = host.navigation_process_noise(context)
         moved = moving & ~drawn
-        anchors = None
         if moved.any():
             particles = self._stored_runs(context)
             log_weights = self._log_weights_runs(context)
             u = self.accelerations(context)
             jitter = self.jitter(context)
             first = self._posterior.Eval(context)[5]
-            # The range-bearing kernel's centre is the vehicle at each anchor: with navigated
-            # motion the stored frame is the relative state less the navigated state there
-            # (else the relative state itself).
-            if self._parameters.kernel == "range_bearing" and host.error_model.navigated_motion:
-                anchors = self._window_steps(context)[0].start
         x, P = np.full((B, 6), np.nan), np.full((B, 6, 6), np.nan)
         for r in np.flatnonzero(moving):
             rng = np.random.default_rng(int(seeds[r] * 2.0**_SEED_BITS))
@@ -316,7 +311,6 @@ class LateRangeSteps:
                             particles[r].T, log_weights[r], u[r],
                             None if jitter is None else jitter[r], first[r], rng, root,
                             out[r].T, u_next[r], None if jitter_next is None else jitter_next[r],
-                            None if anchors is None else anchors[r],
                         )  # fmt: skip
                     out_log_weights[r] = weights
                     moments(out[r], self._no_offset, weights, self._weights[0], x[r], P[r])
@@ -359,17 +353,20 @@ class LateRangeSteps:
         out: np.ndarray,
         u_next: np.ndarray,
         jitter_next: np.ndarray | None,
-        anchor: np.ndarray | None = None,
     ) -> np.ndarray:
         """One run's anchor cloud (6×N) moved one step on into ``out``, its window's slots
         shifted into ``u_next`` and ``jitter_next`` with a new newest step; returns its log
-        weights. ``anchor``: the stored frame's offset at the anchor (None: zero)."""
+        weights."""
         host, work = self._host, self._work
         chosen = None
         if first is None:
             out[...] = particles
         else:  # the oldest step's ranges have all arrived: the posterior weighed them
-            weighed, acceleration = first
+            weighed, acceleration, start = first
+            # The range-bearing kernel's centre is the vehicle at the anchor: with navigated
+            # motion the stored frame is the relative state less the navigated state there
+            # (else the relative state itself).
+            anchor = start if host.error_model.navigated_motion else None
             particles, log_weights, chosen = resample_regularised(
                 particles, weighed, rng, self._parameters, work=work, offset=anchor
             )

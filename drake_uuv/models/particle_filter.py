@@ -58,10 +58,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from drake_uuv.models.measurement import batch_ranges
-from drake_uuv.models.particle_workspace import Workspace, work_rows
+from drake_uuv.models.particle_workspace import STATE_SIZE, Workspace, work_rows
 from drake_uuv.models.range_bearing import from_range_bearing, range_bearing_frame, to_range_bearing
-
-STATE_SIZE = 6
 
 #: The regularisation kernel's coordinates (see the module's text).
 KERNELS = ("cartesian", "range_bearing")
@@ -400,19 +398,20 @@ def resample_regularised(
     if not effective_sample_size(weights) < parameters.resample_threshold * n:
         return particles, log_weights, None
     h = parameters.bandwidth
-    if h > 0.0 and moments is None:
+    frame = None
+    if h > 0.0 and parameters.kernel == "range_bearing":
+        frame = range_bearing_frame(particles, weights, offset)
+    if frame is not None:  # the kernel's coordinates, and their moments
+        local = to_range_bearing(particles, frame, offset)
+        moments = weighted_moments(local, weights)
+    elif h > 0.0 and moments is None:
         moments = weighted_moments(particles, weights, work)
     chosen = systematic_resample(weights, float(rng.random()))
-    source = particles
     # "clip": the indices are in range, and numpy buffers ``out`` under the default "raise".
     particles = np.take(particles, chosen, axis=1, out=work_rows(work, 2, rows, n), mode="clip")
     log_weights = np.full(n, -math.log(n))
-    frame = None
-    if h > 0.0 and parameters.kernel == "range_bearing":
-        frame = range_bearing_frame(source, weights, offset)
     if frame is not None:
-        local = to_range_bearing(source, frame, offset)
-        moved = shrinkage_kernel(local[:, chosen], *weighted_moments(local, weights), h, rng)
+        moved = shrinkage_kernel(local[:, chosen], *moments, h, rng)
         particles[...] = from_range_bearing(moved, frame, offset)
     elif h > 0.0:
         particles = shrinkage_kernel(particles, *moments, h, rng, work)

@@ -10,7 +10,8 @@ order, so both give the same bits.
 
 import numpy as np
 
-_STATE_SIZE = 6  # the relative state [q, ϑ]
+#: The relative state ``[q, ϑ]``'s size: a particle's.
+STATE_SIZE = 6
 
 
 class Workspace:
@@ -22,9 +23,9 @@ class Workspace:
     """
 
     def __init__(self, count: int, arrays: int = 4) -> None:
-        self._arrays = list(np.empty((arrays, _STATE_SIZE, count)))
+        self._arrays = list(np.empty((arrays, STATE_SIZE, count)))
         # The views a step asks for, made once: each costs a microsecond, about 40 a step.
-        self._rows = [[a[:rows] for rows in range(_STATE_SIZE + 1)] for a in self._arrays]
+        self._rows = [[a[:rows] for rows in range(STATE_SIZE + 1)] for a in self._arrays]
 
     @property
     def count(self) -> int:
