@@ -53,8 +53,9 @@ one reads as such (:meth:`ParticleCloud._measurement`).
 
 Late ranges (the host's ping window) are stepped by numpy on each live run's cloud in turn
 (:class:`~drake_uuv.estimators.particle_window.LateRangeSteps`): the posterior is
-``(x, P, nis, log_weights, None, first)`` of the window and this tick's ranges, and the
-host's periodic update calls :meth:`~LateRangeSteps.advance_window` ``(context,
+``(x, P, nis, log_weights, None, first, dof)`` of the window and this tick's ranges (the NIS
+and its dimensions of the ranges that arrived at the tick: :meth:`ParticleCloud.innovations`),
+and the host's periodic update calls :meth:`~LateRangeSteps.advance_window` ``(context,
 discrete_state, runs, drawn, draw_x, draw_P)`` in place of :meth:`ParticleCloud.advance`.
 """
 
@@ -201,7 +202,8 @@ class ParticleCloud(LateRangeSteps):
             self._no_offset = np.zeros(STATE_SIZE)
         # The posterior, shared by the filtered output and the periodic update: (x, P, nis,
         # log weights, weights, and with late ranges each run's first step's (log weights,
-        # acceleration) once the window is full, else None).
+        # acceleration) once the window is full, else None; with late ranges the NIS's
+        # dimensions, else None).
         self._posterior = host.DeclareCacheEntry(
             "particle posterior",
             ValueProducer(
@@ -212,6 +214,7 @@ class ParticleCloud(LateRangeSteps):
                         np.zeros(B),
                         np.zeros((B, n)),
                         np.zeros((B, n)),
+                        None,
                         None,
                     )
                 ).Clone,
@@ -286,10 +289,19 @@ class ParticleCloud(LateRangeSteps):
     def posterior(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(x, P, nis, log_weights)`` of this step's ranges, each run's (see the module
         notes; with late ranges, of the window's and this tick's ranges)."""
-        x, P, nis, log_weights, _, _ = self._posterior.Eval(context)
+        x, P, nis, log_weights, *_ = self._posterior.Eval(context)
         if self._one_run_host:
             return x[0], P[0], float(nis[0]), log_weights[0]
         return x, P, nis, log_weights
+
+    def innovations(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        """With late ranges, each run's ``(nis, dof)`` (B each) of the ranges that arrived at
+        this tick, each weighed once along the window (NaN and 0 where none did, or for a run
+        not live): what the host's divergence test reads."""
+        if self._window is None:
+            raise ValueError("innovations: only with late ranges (the host's ping window)")
+        _, _, nis, _, _, _, dof = self._posterior.Eval(context)
+        return nis, dof
 
     def _calc_posterior(self, context: Context, value: AbstractValue) -> None:
         if self._window is not None:
@@ -298,7 +310,7 @@ class ParticleCloud(LateRangeSteps):
         m = self._measurement(context)
         # Written in place: the cache entry owns its arrays (B·N each, allocated once per
         # context; a fresh pair each step would fault in and zero their pages every step).
-        x, P, nis, log_posterior, weights, _ = value.get_mutable_value()
+        x, P, nis, log_posterior, weights, *_ = value.get_mutable_value()
         cloud_posterior(
             self._stored_runs(context), self._log_weights_runs(context), m.offset, m.z, m.used,
             m.q_s, m.R, self.live(context), x, P, nis, log_posterior, weights,

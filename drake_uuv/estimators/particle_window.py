@@ -137,11 +137,12 @@ class LateRangeSteps:
         step,
         out: np.ndarray,
         jitter: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, list[float]]:
+    ) -> tuple[np.ndarray, np.ndarray, list[tuple[float, int]]]:
         """One run's stored-frame particles (N×6) at a step's tick (plus their ``jitter``
         (6×N, or 0×N), the navigation's process noise), reweighted by its arrived ranges at
         their ping times along each particle's path (accelerations ``u``, 3×N), and moved to
-        the next tick (in ``out``)."""
+        the next tick (in ``out``); with the ``(NIS, dimensions)`` of each instant that holds
+        a range arriving at this tick."""
         host = self._host
         t = host.time_step
         navigated = host.error_model.navigated_motion
@@ -167,22 +168,23 @@ class LateRangeSteps:
             )  # fmt: skip
             log_weights = weighed
             if np.any(step.new[instant.sonars]):
-                new_nis.append(nis)
+                new_nis.append((nis, int(np.count_nonzero(ranges.valid))))
         _, B = transition(t)
         move_into(particles, jitter, u, float(t), B @ a, out)
         return out, log_weights, new_nis
 
     def _window_posterior(self, context: Context) -> tuple:
-        """``(x, P, nis, log_weights, None, first)`` at this tick ((B, 6), (B, 6, 6), (B),
-        (B, N), relative frame): each live run's cloud at the anchor stepped through the
+        """``(x, P, nis, log_weights, None, first, dof)`` at this tick ((B, 6), (B, 6, 6),
+        (B), (B, N), relative frame): each live run's cloud at the anchor stepped through the
         window, then this tick's ranges (NaN rows for the others); ``first`` (B) each run's
         first step's log weights, acceleration and navigated start state when its ranges have
-        all arrived (the
-        periodic update resamples with them), else None."""
+        all arrived (the periodic update resamples with them), else None. ``nis`` and ``dof``
+        (B) are of the ranges that arrived at this tick, each counted once (the window's
+        instants that hold one, and this tick's own): NaN and 0 when none did."""
         host = self._host
         B, n = self.batch_size, self._parameters.count
         x, P = np.full((B, 6), np.nan), np.full((B, 6, 6), np.nan)
-        nis, log_weights = np.full(B, np.nan), np.full((B, n), np.nan)
+        nis, dof, log_weights = np.full(B, np.nan), np.zeros(B), np.full((B, n), np.nan)
         first: list = [None] * B
         live = self.live(context)
         if live.any():
@@ -196,14 +198,14 @@ class LateRangeSteps:
             for r in np.flatnonzero(live):
                 with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
                     try:
-                        nis[r], log_weights[r], first[r] = self._run_posterior(
+                        nis[r], dof[r], log_weights[r], first[r] = self._run_posterior(
                             context, [step.run(r) for step in steps], particles[r], prior[r],
                             u[r], None if jitter is None else jitter[r], offset[r],
                             ranges.run(r), x[r], P[r],
                         )  # fmt: skip
                     except np.linalg.LinAlgError:  # a failed run: NaN, the others go on
                         x[r], P[r], first[r] = np.nan, np.nan, None
-        return x, P, nis, log_weights, None, first
+        return x, P, nis, log_weights, None, first, dof
 
     def _run_posterior(
         self,
@@ -218,7 +220,7 @@ class LateRangeSteps:
         x: np.ndarray,
         P: np.ndarray,
     ) -> tuple:
-        """One run's ``(nis, log_weights, first)`` (see :meth:`_window_posterior`), its
+        """One run's ``(nis, dof, log_weights, first)`` (see :meth:`_window_posterior`), its
         posterior's mean and covariance in ``x`` and ``P``. ``particles`` N×6 (stored
         frame), ``u`` D×3×N, ``jitter`` D×6×N or None."""
         j = self._window.tick(context)
@@ -244,10 +246,11 @@ class LateRangeSteps:
                 self._ranges_work, weighed, posterior,
             )  # fmt: skip
             log_weights = weighed
-            nis_total.append(nis)
+            nis_total.append((nis, int(np.count_nonzero(ranges.valid))))
         moments(particles, offset, log_weights, posterior, x, P)
-        nis = float(sum(nis_total)) if nis_total else math.nan
-        return nis, log_weights, first
+        if not nis_total:
+            return math.nan, 0, log_weights, first
+        return float(sum(v for v, _ in nis_total)), sum(d for _, d in nis_total), log_weights, first
 
     @_on_one_blas_thread
     def advance_window(

@@ -255,18 +255,21 @@ class RangeFilter(RelativeStateEstimator):
             return None
         x, P, nis, _ = self._cloud.posterior(context)
         status = np.where(np.isfinite(nis), float(VALID), self.arrival_status(context))
-        # The particle runs' innovations are not counted: only the Gaussian phase's are tested.
+        # The particle runs' innovations are those of the ranges that arrived at this tick (the
+        # particle filter's divergence test reads them; a Gaussian filter's bridge does not).
+        innovation_nis, innovation_dof = self._cloud.innovations(context)
         if particle.all():
-            none = np.zeros(self.batch_size)
-            return FilteredEstimate(x, P, status, nis, innovation_nis=none, innovation_dof=none)
+            return FilteredEstimate(
+                x, P, status, nis, innovation_nis=innovation_nis, innovation_dof=innovation_dof
+            )
         base = self._filtered_by_update(context)
         return FilteredEstimate(
             np.where(particle[:, np.newaxis], x, base.x),
             np.where(particle[:, np.newaxis, np.newaxis], P, base.P),
             np.where(particle, status, base.status),
             np.where(particle, nis, base.nis),
-            innovation_nis=base.innovation_nis,
-            innovation_dof=base.innovation_dof,
+            innovation_nis=np.where(particle, innovation_nis, base.innovation_nis),
+            innovation_dof=np.where(particle, innovation_dof, base.innovation_dof),
         )
 
     def step_belief(self, context: Context, x: np.ndarray, P: np.ndarray, step) -> StepOutcome:
@@ -338,7 +341,10 @@ class RangeFilter(RelativeStateEstimator):
             # particles and do not go to them: a run leaving its particles keeps the anchor
             # the cloud wrote.
             gaussian = ~to_particles & (phases != _PARTICLE)
-            outcome = self.anchor_advance(context) if gaussian.any() else None
+            # A restarting run's anchor moves on too (a run leaving its particles: the cloud's
+            # moments, predicted), whichever runs share its batch.
+            moved = gaussian.any() or restart.any()
+            outcome = self.anchor_advance(context) if moved else None
             if outcome is not None:
                 self.write_prediction(discrete_state, outcome.x, outcome.P, runs=gaussian)
             if restart.any():
