@@ -109,7 +109,7 @@ in range–bearing coordinates (`pf2`). A run is lost when the
 estimator-health monitor stopped it or its final position error exceeds {LOST_ERROR:g} m. A
 regime's filters take its scenario's particle options (at the far standoff, as
 `far_standoff.yaml`: {far_count} particles, the regularisation kernel in {far_kernel}
-coordinates) and otherwise their defaults: the EKF and UKF with their recovery (a run whose
+coordinates) and otherwise their defaults: each filter with its recovery (a run whose
 innovations say it diverged goes back to its linear start) and, in the realistic scenario, the
 tracking law's hold (at rest while the filter is in its linear start). The
 band is the 95 % band of a consistent filter's NEES averaged over the row's runs at one step,

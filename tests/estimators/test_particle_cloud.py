@@ -86,6 +86,14 @@ def test_output_is_the_numpy_update_and_ignores_the_random_port():
     assert_array_equal(filtered(system, context)[0], x_hat)
 
 
+def test_only_a_cloud_with_late_ranges_reports_arrived_innovations():
+    """Without late ranges a tick's innovations are its posterior's NIS and its valid ranges
+    (the host counts them); only the window path reports its own."""
+    system, context, _, _ = particle_context()
+    with pytest.raises(ValueError, match=r"^innovations: only with late ranges"):
+        system.cloud.innovations(context)
+
+
 def test_update_is_the_reference_step_seeded_by_the_port():
     """The periodic update is :func:`reference_step` (the numpy steps) with the kernel's own
     draws for the port's value: equal to rounding. (Before the batch, the draws came from a
