@@ -202,8 +202,7 @@ class ParticleCloud(LateRangeSteps):
             self._no_offset = np.zeros(STATE_SIZE)
         # The posterior, shared by the filtered output and the periodic update: (x, P, nis,
         # log weights, weights, and with late ranges each run's first step's (log weights,
-        # acceleration) once the window is full, else None; with late ranges the NIS's
-        # dimensions, else None).
+        # acceleration) once the window is full and the NIS's dimensions, else None each).
         self._posterior = host.DeclareCacheEntry(
             "particle posterior",
             ValueProducer(
