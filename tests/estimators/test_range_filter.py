@@ -508,8 +508,8 @@ LATE_PINGS_LQR = [
 @pytest.mark.slow
 def test_with_late_ranges_recovery_keeps_the_particle_filter_run_it_lost() -> None:
     """The LQR world-frame law at σ = 0.5 m with late pings and ranges (sonar 2 0.25 s after
-    sonar 1, each 0.2 s late), the particle filter modelling them, seed 541 (of 1000, one of
-    two lost): the cloud drawn at the hand-over is far off, its innovations grow and the
+    sonar 1, each 0.2 s late), the particle filter modelling them, seed 541 (one of the 3 in
+    1000 it loses without recovery): the cloud drawn at the hand-over is far off, its innovations grow and the
     monitor stops the run at step 66. With recovery (the default) the run returns to its
     linear start once, its window of 10 ticks holding both sonars' ranges at each (20
     dimensions) above the threshold, and ends within 2 m."""
