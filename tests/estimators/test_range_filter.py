@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import AddRandomInputs
 
@@ -464,9 +465,7 @@ def test_with_late_ranges_the_particle_phase_reports_each_arrived_range_once() -
     the kinematic plant: at every tick of the particle phase the cloud reports the NIS of the
     ranges that arrived at the tick, with one dimension per valid arrival (the sonars'
     status), finite exactly when one arrived; and the filter's estimate hands them to its
-    divergence test as its innovations (where they were once left at zero)."""
-    from pydrake.systems.analysis import Simulator
-
+    divergence test as its innovations."""
     overrides = [
         "plant=KinematicUuv",
         "steps=90",
