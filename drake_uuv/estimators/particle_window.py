@@ -250,7 +250,8 @@ class LateRangeSteps:
         moments(particles, offset, log_weights, posterior, x, P)
         if not nis_total:
             return math.nan, 0, log_weights, first
-        return float(sum(v for v, _ in nis_total)), sum(d for _, d in nis_total), log_weights, first
+        values, dimensions = zip(*nis_total, strict=True)
+        return float(sum(values)), sum(dimensions), log_weights, first
 
     @_on_one_blas_thread
     def advance_window(

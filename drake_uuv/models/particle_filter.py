@@ -407,13 +407,13 @@ def resample_regularised(
     elif h > 0.0 and moments is None:
         moments = weighted_moments(particles, weights, work)
     chosen = systematic_resample(weights, float(rng.random()))
+    log_weights = np.full(n, -math.log(n))
+    if frame is not None:  # the chosen particles' own coordinates, moved and mapped back
+        moved = shrinkage_kernel(local[:, chosen], *moments, h, rng)
+        return from_range_bearing(moved, frame, offset), log_weights, chosen
     # "clip": the indices are in range, and numpy buffers ``out`` under the default "raise".
     particles = np.take(particles, chosen, axis=1, out=work_rows(work, 2, rows, n), mode="clip")
-    log_weights = np.full(n, -math.log(n))
-    if frame is not None:
-        moved = shrinkage_kernel(local[:, chosen], *moments, h, rng)
-        particles[...] = from_range_bearing(moved, frame, offset)
-    elif h > 0.0:
+    if h > 0.0:
         particles = shrinkage_kernel(particles, *moments, h, rng, work)
     return particles, log_weights, chosen
 
