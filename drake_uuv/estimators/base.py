@@ -15,11 +15,11 @@ import math
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import (
-    BasicVector,
     Context,
     DiscreteValues,
     InputPort,
     LeafSystem,
+    State,
     ValueProducer,
 )
 
@@ -32,6 +32,7 @@ from drake_uuv.estimators.contract import (
 )
 from drake_uuv.estimators.error_model import ErrorModel, ideal_model
 from drake_uuv.estimators.late_ranges import LateRanges
+from drake_uuv.estimators.outputs import EstimatorOutputs
 from drake_uuv.estimators.ping_window import PingWindow
 from drake_uuv.estimators.timed_step import StepOutcome, gaussian_step
 from drake_uuv.estimators.vehicle_motion import VEHICLE_MOTIONS
@@ -43,7 +44,7 @@ from drake_uuv.primitives.batch import batch_size_field, per_run, tiled
 from drake_uuv.scenario.estimators import EstimatorOptions
 
 
-class RelativeStateEstimator(LateRanges, LeafSystem):
+class RelativeStateEstimator(LateRanges, EstimatorOutputs, LeafSystem):
     """Base of the estimators of ``Υ = [q, ϑ]``; a variant supplies the measurement update.
 
     Timing (the paper's): the filtered estimate ``Υ̂(k|k)`` of step k is a direct-feedthrough
@@ -65,6 +66,8 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
     - :meth:`advance` (optional): the periodic update; the default writes the Gaussian
       prediction of the filtered estimate. Override it for state of your own (declare your
       groups with ``DeclareDiscreteState`` in ``__init__``) and call ``super().advance``.
+      A variant with abstract state passes ``abstract_state=True`` and overrides
+      :meth:`advance_state` (its outputs are then published: :mod:`.outputs`).
     - :meth:`prior`, :meth:`ranges`, :meth:`filtered`: this step's prior, ranges and filtered
       estimate; :meth:`predicted` and :meth:`write_prediction`: a prediction in the frame the
       state stores (see :mod:`~drake_uuv.estimators.vehicle_motion`) and writing it.
@@ -101,7 +104,12 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
     """
 
     def __init__(
-        self, config: EstimatorOptions, *, setting: EstimatorSetting, batch_size: int = 1
+        self,
+        config: EstimatorOptions,
+        *,
+        setting: EstimatorSetting,
+        batch_size: int = 1,
+        abstract_state: bool = False,
     ) -> None:
         super().__init__()
         if not isinstance(config, EstimatorOptions):
@@ -113,8 +121,7 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
         self._setting = setting
         self._time_step = float(setting.time_step)
         self._A, self._B = double_integrator(self._time_step)
-        W = config.filter_acceleration_covariance(setting.acceleration_covariance)
-        self._W = W
+        self._W = W = config.filter_acceleration_covariance(setting.acceleration_covariance)
         self._Q = process_noise_covariance(W, self._time_step)
         self._gate_probability = config.gate_probability
         self._gate_thresholds: dict[int, float] = {}
@@ -126,6 +133,7 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
         x0 = np.asarray(config.initial_estimate, dtype=float)
         P0 = np.asarray(config.initial_covariance, dtype=float)
         self._initial = Estimate(x0, P0)
+        self._declare_published(abstract_state)
         self._x_index = self.DeclareDiscreteState(tiled(x0, B))
         self._P_index = self.DeclareDiscreteState(tiled(P0, B))
 
@@ -168,14 +176,11 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
         )
         self._filtered = self.DeclareCacheEntry(
             "filtered estimate",
-            ValueProducer(
-                allocate=AbstractValue.Make(empty).Clone,
-                calc=self._calc_filtered,
-            ),
+            ValueProducer(allocate=AbstractValue.Make(empty).Clone, calc=self._calc_filtered),
             self.depends_on_measurement(),
         )
         self._declare_outputs()
-        self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
+        self._declare_update(self._update)
 
     # ------------------------------------------------------------------ hooks for a variant
 
@@ -203,6 +208,12 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
         outcome = self.anchor_advance(context)
         if outcome is not None:
             self.write_prediction(discrete_state, outcome.x, outcome.P)
+
+    def advance_state(self, context: Context, filtered: FilteredEstimate, state: State) -> None:
+        """The periodic update of a variant that declares abstract state (``abstract_state``):
+        the default is :meth:`advance` on the discrete state; override it to write the
+        abstract state too."""
+        self.advance(context, filtered, state.get_mutable_discrete_state())
 
     def filtered_estimate(self, context: Context) -> FilteredEstimate | None:
         """A variant's own filtered estimate of this tick, or None for the base's (the
@@ -377,7 +388,8 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
             *self.vehicle_motion.state_ports,
             *(self._window.input_ports if self._window is not None else []),
         ]  # fmt: skip
-        return self._tickets(ports) | {self.xd_ticket()}
+        tickets = self._tickets(ports) | {self.xd_ticket()}
+        return tickets | {self.xa_ticket()} if self._abstract else tickets
 
     def gate_thresholds(self, dof: np.ndarray) -> np.ndarray:
         """Each run's gate (B) for its update's innovation dimension ``dof`` (B; 0: none)."""
@@ -396,26 +408,6 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
     @staticmethod
     def _tickets(ports: list[InputPort]) -> set:
         return {port.ticket() for port in ports}
-
-    def _declare_outputs(self) -> None:
-        """The output ports (see the class notes), of the filtered estimate's cache entry."""
-        B = self.batch_size
-        depends = {self._filtered.ticket()}
-        self.DeclareVectorOutputPort("x_TU_hat", B * 6, self._calc_x_hat, depends)
-        self.DeclareVectorOutputPort("P_TU", B * 36, self._calc_P, depends)
-        if self._window is not None:  # the belief stepped through the window's earlier ranges
-            before = {self._stepped_before.ticket()}
-            self.DeclareVectorOutputPort("x_TU_prior", B * 6, self._calc_prior_before, before)
-            self.DeclareVectorOutputPort("P_TU_prior", B * 36, self._calc_P_prior_before, before)
-        elif self.vehicle_motion.state_ports:
-            prior_tickets = {self.xd_ticket(), *self._tickets(self.vehicle_motion.state_ports)}
-            self.DeclareVectorOutputPort("x_TU_prior", B * 6, self._calc_prior, prior_tickets)
-            self.DeclareStateOutputPort("P_TU_prior", self._P_index)
-        else:
-            self.DeclareStateOutputPort("x_TU_prior", self._x_index)
-            self.DeclareStateOutputPort("P_TU_prior", self._P_index)
-        self.DeclareVectorOutputPort("measurement_status", B, self._calc_status, depends)
-        self.DeclareVectorOutputPort("nis", B, self._calc_nis, depends)
 
     def _start_in_stored_frame(self, context: Context, discrete_state: DiscreteValues) -> None:
         """At initialization: group 0 becomes ``Υ̂(0|−1) − offset``."""
@@ -483,18 +475,3 @@ class RelativeStateEstimator(LateRanges, LeafSystem):
         self.advance(context, self._filtered.Eval(context), discrete_state)
         if self._window is not None:
             self._record_window(context, discrete_state)
-
-    def _calc_prior(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self.prior(context).x.ravel())
-
-    def _calc_x_hat(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._filtered.Eval(context).x.ravel())
-
-    def _calc_P(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._filtered.Eval(context).published_P.ravel())
-
-    def _calc_status(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._filtered.Eval(context).status)
-
-    def _calc_nis(self, context: Context, output: BasicVector) -> None:
-        output.set_value(self._filtered.Eval(context).nis)

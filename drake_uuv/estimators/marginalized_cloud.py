@@ -8,7 +8,7 @@ The math is :mod:`drake_uuv.models.marginalized_kernels`; the rest is the partic
 
 - :class:`MarginalizedCloud` is a :class:`~drake_uuv.estimators.particle_cloud.ParticleCloud`
   whose particles ``(B, N, 6)`` are ``[q, m]`` (stored frame, as the particle cloud's), with
-  one more discrete state, ``Σ`` (B·9). Its posterior is the particle cloud's reweighting of
+  one discrete state more, ``Σ`` (B·9). Its posterior is the particle cloud's reweighting of
   ``[q, m]`` by the ranges' likelihood of ``q`` (the same kernel, the same ranges and error
   model), its covariance plus ``Σ`` in the velocity block; its periodic update resamples
   (carrying ``q`` and ``m``), draws each ``q'`` from the marginal prediction and conditions
@@ -24,7 +24,7 @@ ideal``).
 """
 
 import numpy as np
-from pydrake.systems.framework import Context, DiscreteValues
+from pydrake.systems.framework import Context, State
 
 from drake_uuv.estimators.contract import EstimatorSetting, FilteredEstimate
 from drake_uuv.estimators.particle_cloud import CloudMeasurement, ParticleCloud, _mask, _runs
@@ -97,7 +97,7 @@ class MarginalizedCloud(ParticleCloud):
         self,
         context: Context,
         filtered: FilteredEstimate,
-        discrete_state: DiscreteValues,
+        state: State,
         draw: tuple[np.ndarray, np.ndarray] | None = None,
         weigh_draw: bool | np.ndarray = False,
         *,
@@ -130,19 +130,24 @@ class MarginalizedCloud(ParticleCloud):
         acceleration = _runs(host.vehicle_motion.acceleration(context), B, 3)
         Q_nav = host.navigation_process_noise(context)
         Q = self._Q_runs if Q_nav is None else self._Q + _runs(Q_nav, B, 6, 6)
-        out = discrete_state.get_mutable_value(self._particles_index).reshape(B, n, STATE_SIZE)
-        out_log_weights = discrete_state.get_mutable_value(self._log_weights_index).reshape(B, n)
+        before = self.arrays(context)
+        discrete_state = state.get_mutable_discrete_state()
+        # The runs not moving keep their particles and Σ: the kernel writes the moving ones'.
+        out, out_log_weights = before.particles.copy(), before.log_weights.copy()
         out_Sigma = discrete_state.get_mutable_value(self._Sigma_index).reshape(B, 3, 3)
         x, P = np.empty((B, 6)), np.empty((B, 6, 6))
         marginalized_advance(
-            self._stored_runs(context), self._log_weights_runs(context),
+            before.particles, before.log_weights,
             self.velocity_covariance(context).copy(), reweigh, posterior[3], posterior[4],
             posterior[0], posterior[1], keys, moving, drawn, draw_x, draw_P, weighed, m.offset,
             m.z, m.used, m.q_s, m.R, self._time_step, acceleration, Q,
             self._parameters.resample_threshold, self._parameters.bandwidth,
             self._parameters.kernel == "range_bearing", out, out_log_weights, out_Sigma, x, P,
         )  # fmt: skip
-        discrete_state.set_value(self._live_index, moving.astype(float))
+        self._write(
+            state,
+            before.replaced(particles=out, log_weights=out_log_weights, live=moving.astype(float)),
+        )
         if write_prediction:
             if self._one_run_host:
                 host.write_prediction(discrete_state, x[0], P[0])

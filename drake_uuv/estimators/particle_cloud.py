@@ -1,7 +1,7 @@
 """The particle cloud a raw-range filter carries where a Gaussian cannot describe the posterior.
 
 A component of :class:`~drake_uuv.estimators.range_filter.RangeFilter`: it declares its own
-discrete state, random input and cache entry on the filter that owns it (its *host*), and
+abstract state, random input and cache entry on the filter that owns it (its *host*), and
 steps the clouds of a batch of B runs, N particles each, with the compiled kernels of
 :mod:`drake_uuv.models.particle_kernels` (the regularised particle filter of
 :mod:`drake_uuv.models.particle_filter`, fused into a few passes over each run's cloud).
@@ -10,9 +10,13 @@ The batched API (what the host calls; B runs, N particles)
 ----------------------------------------------------------
 ``ParticleCloud(host, parameters, range_covariance, *, batch_size=B)`` declares on the host:
 
-- discrete state: the particles, ``B·N·6`` (run-major, then particle, then ``[q, ϑ]``: a
-  ``(B, N, 6)`` array), in the host's stored frame; their log weights ``B·N``; ``live``
-  ``B`` (1 where the run's cloud holds a particle phase's particles: only those are weighed);
+- abstract state (:meth:`ParticleCloud.arrays`, a
+  :class:`~drake_uuv.primitives.run_arrays.RunArrays` that Drake's copies share, so a step
+  whose clouds do not move carries them for nothing: the host updates it without
+  restriction, its outputs published, :mod:`~drake_uuv.estimators.outputs`): the particles
+  ``(B, N, 6)`` (run, particle, ``[q, ϑ]``), in the host's stored frame; their log weights
+  ``(B, N)``; ``live`` ``(B,)`` (1 where the run's cloud holds a particle phase's particles:
+  only those are weighed); with late ranges the window's draws;
 - random input ``particle_seed``, ``B`` uniforms: run i's value, from run i's own stream,
   keys all of run i's draws of the step (:func:`~drake_uuv.models.particle_random.cloud_keys`),
   so run i's particles are a function of its seed alone, whatever B and its place;
@@ -24,7 +28,7 @@ Each step the host calls:
   ``(B, 6, 6)``, ``(B,)``, ``(B, N)``: each live run's cloud reweighted by its step's ranges
   (relative frame; NIS NaN without a range; NaN rows for a run not live). Deterministic, no
   random input: the filtered output may depend on it.
-- :meth:`ParticleCloud.advance` ``(context, filtered, discrete_state, draw=None,
+- :meth:`ParticleCloud.advance` ``(context, filtered, state, draw=None,
   weigh_draw=False, *, drawn=None, runs=None, write_prediction=True) -> (x, P)`` in the
   periodic update: ``runs`` (``(B,)`` bool, default all) the runs whose cloud moves (the runs
   in the particle phase next step; the others are marked not live, their particles kept);
@@ -35,13 +39,14 @@ Each step the host calls:
   or one bool). Returns the predicted clouds' mean and covariance, ``(B, 6)``, ``(B, 6, 6)``,
   stored frame, NaN for the runs not moving; with ``write_prediction`` it also writes the
   moving runs' as the host's prediction (``host.write_prediction(discrete_state, x, P,
-  runs=runs)``: the other runs keep what the host wrote).
+  runs=runs)``: the other runs keep what the host wrote). ``state`` is the host's next
+  ``State`` (the cloud's arrays and the host's discrete state).
 
 Accessors: :meth:`~ParticleCloud.particles` ``(B, N, 6)`` relative,
 :meth:`~ParticleCloud.log_weights` ``(B, N)``, :meth:`~ParticleCloud.set_particles`,
 :meth:`~ParticleCloud.live`. Memory: :func:`bytes_per_run` is what a batch holds per run
-(the state twice, the context's and the update's, and the posterior's log weights and
-weights), so a study can size its batches: at N = 5000, 0.64 MB a run; at N = 20 000,
+(the state twice at a step that moves the clouds, the context's and the update's new one, and
+the posterior's log weights and weights), so a study can size its batches: at N = 5000, 0.64 MB a run; at N = 20 000,
 2.56 MB (B = 100: 256 MB).
 
 What the cloud reads of its host: ``model`` (A, B, W), ``window``, ``error_model``,
@@ -56,7 +61,7 @@ Late ranges (the host's ping window) are stepped by numpy on each live run's clo
 ``(x, P, nis, log_weights, None, first, dof)`` of the window and this tick's ranges (the NIS
 and its dimensions of the ranges that arrived at the tick: :meth:`ParticleCloud.innovations`),
 and the host's periodic update calls :meth:`~LateRangeSteps.advance_window` ``(context,
-discrete_state, runs, drawn, draw_x, draw_P)`` in place of :meth:`ParticleCloud.advance`.
+state, runs, drawn, draw_x, draw_P)`` in place of :meth:`ParticleCloud.advance`.
 """
 
 import math
@@ -65,7 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, DiscreteValues, ValueProducer
+from pydrake.systems.framework import Context, State, ValueProducer
 
 from drake_uuv.estimators.base import FilteredEstimate, RelativeStateEstimator
 from drake_uuv.estimators.particle_window import LateRangeSteps
@@ -81,13 +86,14 @@ from drake_uuv.models.particle_kernels import cloud_posterior, psd_factors
 from drake_uuv.models.particle_random import cloud_keys
 from drake_uuv.primitives.batch import batch_size_field
 from drake_uuv.primitives.random_input import declare_random_input
+from drake_uuv.primitives.run_arrays import RunArrays
 
 
 def bytes_per_run(count: int, window: int = 0, navigation_noise: bool = False) -> int:
-    """The bytes a batch holds per run for a cloud of ``count`` particles: its discrete state
-    (particles, log weights, live flag; with late ranges each window step's accelerations and,
-    with ``navigation_noise``, navigation noise) twice, the context's and the periodic
-    update's, and the posterior's log weights and weights (the cache). The kernels' work
+    """The bytes a batch holds per run for a cloud of ``count`` particles, at a step that moves
+    it: its state (particles, log weights, live flag; with late ranges each window step's
+    accelerations and, with ``navigation_noise``, navigation noise) twice, the context's and
+    the periodic update's new one, and the posterior's log weights and weights (the cache). The kernels' work
     arrays (about 12 N doubles) are the batch's, not per run."""
     state = count * (STATE_SIZE + 1) + 1 + window * count * (3 + (6 if navigation_noise else 0))
     return 8 * (2 * state + 2 * count)
@@ -135,10 +141,10 @@ class ParticleCloud(LateRangeSteps):
     read only in the periodic update), which keys the run's counter-based draws: a run is
     reproducible from its seed, alone or in any batch. See the module notes for the API.
 
-    State on the host (per run): the predicted particles (N×6, particle-major) and their log
-    weights (N), in the host's stored frame (see :mod:`~drake_uuv.estimators.vehicle_motion`:
-    with ``vehicle_motion: navigation`` the particles are the target's, negated), and the
-    run's ``live`` flag.
+    Abstract state on the host (:meth:`arrays`, per run): the predicted particles (N×6,
+    particle-major) and their log weights (N), in the host's stored frame (see
+    :mod:`~drake_uuv.estimators.vehicle_motion`: with ``vehicle_motion: navigation`` the
+    particles are the target's, negated), and the run's ``live`` flag.
     """
 
     def __init__(
@@ -173,22 +179,15 @@ class ParticleCloud(LateRangeSteps):
         self._no_z, self._no_q_s = np.zeros((B, 2)), np.zeros((B, 3))
         self._no_used = np.zeros((B, 2), dtype=bool)
         n = parameters.count
-        self._particles_index = host.DeclareDiscreteState(np.zeros(B * n * STATE_SIZE))
-        self._log_weights_index = host.DeclareDiscreteState(np.full(B * n, -math.log(n)))
-        self._live_index = host.DeclareDiscreteState(np.zeros(B))
         self._seed_port = declare_random_input(
             host, "particle_seed", 1, RandomDistribution.kUniform, batch_size=B
         )
         self._window = host.window
-        if self._window is not None:  # each particle's target acceleration over each step
-            D = self._window.schedule.window
-            self._accelerations_index = host.DeclareDiscreteState(np.zeros(B * D * 3 * n))
-        # With modelled navigation errors, each particle's own draw of what they add over each
-        # window step (D×6×N): replayed as the window's steps are, like the accelerations.
-        self._jitter_index = None
-        if self._window is not None and host.error_model.active:
-            D = self._window.schedule.window
-            self._jitter_index = host.DeclareDiscreteState(np.zeros(B * D * 6 * n))
+        self._jittered = self._window is not None and host.error_model.active
+        # One abstract state, never written in place (RunArrays): a step whose clouds do not
+        # move (a Gaussian filter's bridge, idle in most of its steps) carries them at no cost,
+        # where a discrete state would be copied whole twice a step.
+        self._cloud_index = host.DeclareAbstractState(AbstractValue.Make(self._initial_arrays()))
         if self._window is not None:
             # The late-range steps' work arrays: numpy's for the periodic update (6×N), the
             # kernels' (particle-major) for the window's steps.
@@ -222,20 +221,49 @@ class ParticleCloud(LateRangeSteps):
             host.depends_on_measurement(),
         )
 
+    def _initial_arrays(self) -> RunArrays:
+        """The cloud's state at the start (see :meth:`arrays`): no run live."""
+        B, n = self.batch_size, self._parameters.count
+        arrays = {
+            "particles": np.zeros((B, n, STATE_SIZE)),
+            "log_weights": np.full((B, n), -math.log(n)),
+            "live": np.zeros(B),
+        }
+        if self._window is not None:  # each particle's target acceleration over each step
+            D = self._window.schedule.window
+            arrays["accelerations"] = np.zeros((B, D, 3, n))
+        # With modelled navigation errors, each particle's own draw of what they add over each
+        # window step (D×6×N): replayed as the window's steps are, like the accelerations.
+        if self._jittered:
+            arrays["jitter"] = np.zeros((B, D, 6, n))
+        return RunArrays(**arrays)
+
     @property
     def parameters(self) -> ParticleFilterParameters:
         return self._parameters
 
     # ------------------------------------------------------------------------ the state
 
+    def arrays(self, context: Context) -> RunArrays:
+        """The cloud's state: ``particles`` ``(B, N, 6)`` (stored frame), ``log_weights``
+        ``(B, N)``, ``live`` ``(B,)`` and, with late ranges, ``accelerations`` ``(B, D, 3, N)``
+        and (with modelled navigation errors) ``jitter`` ``(B, D, 6, N)``; read-only."""
+        return context.get_abstract_state(self._cloud_index).get_value()
+
+    @property
+    def state_index(self) -> int:
+        """The host's abstract state that holds the cloud's :meth:`arrays`."""
+        return self._cloud_index
+
+    def _write(self, state: State, arrays: RunArrays) -> None:
+        state.get_mutable_abstract_state().get_mutable_value(self._cloud_index).set_value(arrays)
+
     def _stored_runs(self, context: Context) -> np.ndarray:
         """The predicted particles as stored, ``(B, N, 6)`` (a read-only view of the state)."""
-        value = context.get_discrete_state(self._particles_index).get_value()
-        return value.reshape(self.batch_size, self._parameters.count, STATE_SIZE)
+        return self.arrays(context).particles
 
     def _log_weights_runs(self, context: Context) -> np.ndarray:
-        value = context.get_discrete_state(self._log_weights_index).get_value()
-        return value.reshape(self.batch_size, self._parameters.count)
+        return self.arrays(context).log_weights
 
     def particles(self, context: Context) -> np.ndarray:
         """The predicted particles of this step, ``(B, N, 6)`` relative states ``Υ``."""
@@ -248,7 +276,7 @@ class ParticleCloud(LateRangeSteps):
 
     def live(self, context: Context) -> np.ndarray:
         """Which runs' clouds hold a particle phase's particles, ``(B,)`` bool."""
-        return context.get_discrete_state(self._live_index).get_value() != 0.0
+        return self.arrays(context).live != 0.0
 
     def set_particles(
         self, context: Context, particles: np.ndarray, log_weights: np.ndarray
@@ -259,11 +287,12 @@ class ParticleCloud(LateRangeSteps):
         B, n = self.batch_size, self._parameters.count
         particles = np.asarray(particles, dtype=float).reshape(B, n, STATE_SIZE)
         offset = _runs(self._host.vehicle_motion.offset(context), B, STATE_SIZE)
-        context.SetDiscreteState(self._particles_index, (particles - offset[:, None, :]).ravel())
-        context.SetDiscreteState(
-            self._log_weights_index, np.asarray(log_weights, dtype=float).reshape(B * n)
+        arrays = self.arrays(context).replaced(
+            particles=particles - offset[:, None, :],
+            log_weights=np.array(log_weights, dtype=float).reshape(B, n),
+            live=np.ones(B),
         )
-        context.SetDiscreteState(self._live_index, np.ones(B))
+        context.SetAbstractState(self._cloud_index, arrays)
 
     # ------------------------------------------------------------------------ each step
 
@@ -319,7 +348,7 @@ class ParticleCloud(LateRangeSteps):
         self,
         context: Context,
         filtered: FilteredEstimate,
-        discrete_state: DiscreteValues,
+        state: State,
         draw: tuple[np.ndarray, np.ndarray] | None = None,
         weigh_draw: bool | np.ndarray = False,
         *,
@@ -359,19 +388,24 @@ class ParticleCloud(LateRangeSteps):
             jitter = np.zeros((B, 6, 6))
         else:  # the modelled navigation errors' process noise, a factor per run
             jitter = psd_factors(_runs(Q_nav, B, 6, 6))
-        out = discrete_state.get_mutable_value(self._particles_index).reshape(B, n, STATE_SIZE)
-        out_log_weights = discrete_state.get_mutable_value(self._log_weights_index).reshape(B, n)
+        before = self.arrays(context)
+        # The runs not moving keep their particles: the kernel writes the moving ones'.
+        out, out_log_weights = before.particles.copy(), before.log_weights.copy()
         x, P = np.empty((B, 6)), np.empty((B, 6, 6))
         cloud_advance(
-            self._stored_runs(context), self._log_weights_runs(context), reweigh,
+            before.particles, before.log_weights, reweigh,
             posterior[3], posterior[4], posterior[0], posterior[1], keys, moving, drawn, draw_x,
             draw_P, weighed, m.offset, m.z, m.used, m.q_s, m.R, self._time_step, acceleration,
             self._W_factor, jitter, self._parameters.resample_threshold,
             self._parameters.bandwidth, self._parameters.kernel == "range_bearing", out,
             out_log_weights, x, P,
         )  # fmt: skip
-        discrete_state.set_value(self._live_index, moving.astype(float))
+        self._write(
+            state,
+            before.replaced(particles=out, log_weights=out_log_weights, live=moving.astype(float)),
+        )
         if write_prediction:
+            discrete_state = state.get_mutable_discrete_state()
             if self._one_run_host:
                 host.write_prediction(discrete_state, x[0], P[0])
             else:  # the moving runs' rows only: the others keep the host's own

@@ -19,7 +19,7 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from pydrake.systems.framework import Context, DiscreteValues
+from pydrake.systems.framework import Context, State
 from threadpoolctl import ThreadpoolController
 
 from drake_uuv.estimators.ping_window import StepBatch
@@ -84,18 +84,12 @@ class LateRangeSteps:
 
     def accelerations(self, context: Context) -> np.ndarray:
         """Each run's particles' target acceleration over each window step (B×D×3×N)."""
-        D = self._window.schedule.window
-        value = context.get_discrete_state(self._accelerations_index).get_value()
-        return value.reshape(self.batch_size, D, 3, self._parameters.count)
+        return self.arrays(context).accelerations
 
     def jitter(self, context: Context) -> np.ndarray | None:
         """Each run's particles' draw of the navigation's process noise over each window step
         (B×D×6×N; None without modelled navigation errors or late ranges)."""
-        if self._jitter_index is None:
-            return None
-        D = self._window.schedule.window
-        value = context.get_discrete_state(self._jitter_index).get_value()
-        return value.reshape(self.batch_size, D, 6, self._parameters.count)
+        return self.arrays(context).jitter if self._jittered else None
 
     @staticmethod
     def _jitter_root(Q: np.ndarray | None) -> np.ndarray | None:
@@ -257,7 +251,7 @@ class LateRangeSteps:
     def advance_window(
         self,
         context: Context,
-        discrete_state: DiscreteValues,
+        state: State,
         runs: np.ndarray,
         drawn: np.ndarray,
         draw_x: np.ndarray,
@@ -271,24 +265,20 @@ class LateRangeSteps:
         moving runs' clouds become live, the others not (their particles kept); the moving
         runs' predictions are written."""
         host = self._host
-        B, count = self.batch_size, self._parameters.count
-        D = self._window.schedule.window
+        B = self.batch_size
+        before = self.arrays(context)
         moving = np.asarray(runs, dtype=bool).reshape(B)
         if not moving.any():
-            discrete_state.set_value(self._live_index, np.zeros(B))
+            self._write(state, before.replaced(live=np.zeros(B)))
             return
         drawn = np.asarray(drawn, dtype=bool).reshape(B) & moving
         seeds = np.asarray(self._seed_port.Eval(context), dtype=float)
-        out = discrete_state.get_mutable_value(self._particles_index).reshape(B, count, STATE_SIZE)
-        u_next = discrete_state.get_mutable_value(self._accelerations_index).reshape(B, D, 3, count)
-        out_log_weights = discrete_state.get_mutable_value(self._log_weights_index).reshape(
-            B, count
-        )
+        # The runs not moving keep their arrays; the moving ones' are written below.
+        out, out_log_weights = before.particles.copy(), before.log_weights.copy()
+        u_next = before.accelerations.copy()
         jitter_next = Q = None
-        if self._jitter_index is not None:
-            jitter_next = discrete_state.get_mutable_value(self._jitter_index).reshape(
-                B, D, 6, count
-            )
+        if self._jittered:
+            jitter_next = before.jitter.copy()
             Q = host.navigation_process_noise(context)
         moved = moving & ~drawn
         if moved.any():
@@ -321,8 +311,11 @@ class LateRangeSteps:
                 except np.linalg.LinAlgError:  # a failed run: NaN, the others go on
                     out[r] = np.nan
                     out_log_weights[r] = np.nan
-        host.write_prediction(discrete_state, x, P, runs=moving)
-        discrete_state.set_value(self._live_index, moving.astype(float))
+        host.write_prediction(state.get_mutable_discrete_state(), x, P, runs=moving)
+        arrays = {"particles": out, "log_weights": out_log_weights, "accelerations": u_next}
+        if jitter_next is not None:
+            arrays["jitter"] = jitter_next
+        self._write(state, before.replaced(live=moving.astype(float), **arrays))
 
     def _draw_run(
         self,

@@ -24,7 +24,7 @@ their config dataclass names (``range_update()``, ``handover_policy()``,
 import dataclasses
 
 import numpy as np
-from pydrake.systems.framework import Context, DiscreteValues
+from pydrake.systems.framework import Context, DiscreteValues, State
 
 from drake_uuv.estimators.base import RelativeStateEstimator
 from drake_uuv.estimators.contract import (
@@ -70,7 +70,9 @@ class RangeFilter(RelativeStateEstimator):
 
     Discrete state (per run, B runs row-major): the base's groups 0 and 1 (with particles,
     the predicted cloud's mean and covariance); ``[phase, linear updates applied]``; the
-    linear start's prior share ``S``; with particles, the cloud's particles and log weights.
+    linear start's prior share ``S``. With particles, the cloud's particles and log weights
+    are abstract state (:meth:`ParticleCloud.arrays`), and the outputs are published
+    (:mod:`~drake_uuv.estimators.outputs`).
 
     .. pydrake_system::
 
@@ -122,7 +124,9 @@ class RangeFilter(RelativeStateEstimator):
     def __init__(
         self, config: RawRangeOptions, *, setting: EstimatorSetting, batch_size: int = 1
     ) -> None:
-        super().__init__(config, setting=setting, batch_size=batch_size)
+        # The particle cloud is abstract state (shared, not copied, while it does not change).
+        particles = isinstance(config, RawRangeOptions) and config.carries_particles()
+        super().__init__(config, setting=setting, batch_size=batch_size, abstract_state=particles)
         B = self.batch_size
         self._mean_variances = setting.noise_variances / setting.samples_per_step
         self._noise_std = np.sqrt(self._mean_variances)
@@ -141,9 +145,9 @@ class RangeFilter(RelativeStateEstimator):
         )
         phase = Phase.LINEAR if self._policy.linear_start else Phase.RANGE
         self._phase_index = self.DeclareDiscreteState(tiled([float(phase), 0.0], B))
-        self.DeclareStateOutputPort("estimator_phase", self._phase_index)
+        self.declare_state_output("estimator_phase", self._phase_index, 2)
         self._cloud = None
-        if not self._gaussian or self._policy.particle_bridge:
+        if particles:
             self._cloud = self.cloud_type(self, config.particle_parameters(), self._R, batch_size=B)
         self._dof_linear = np.ones(B, dtype=np.intp)
         gate = config.handover_range_gate
@@ -159,7 +163,7 @@ class RangeFilter(RelativeStateEstimator):
             self._recovery_index = self.DeclareDiscreteState(
                 tiled([0.0, np.nan, np.nan, np.nan], B)
             )
-            self.DeclareStateOutputPort("estimator_recovery", self._recovery_index)
+            self.declare_state_output("estimator_recovery", self._recovery_index, 4)
             self.extra_signals = (*type(self).extra_signals, _RECOVERY_SIGNAL)
             self._restart_P = self.initial_estimate.P
 
@@ -291,9 +295,18 @@ class RangeFilter(RelativeStateEstimator):
             return []
         return [(ranges.q_s, self._start.measurement(ranges, filtered.x)[2], runs)]
 
+    def advance_state(self, context: Context, filtered: FilteredEstimate, state: State) -> None:
+        self.advance(context, filtered, state.get_mutable_discrete_state(), state)
+
     def advance(
-        self, context: Context, filtered: FilteredEstimate, discrete_state: DiscreteValues
+        self,
+        context: Context,
+        filtered: FilteredEstimate,
+        discrete_state: DiscreteValues,
+        state: State | None = None,
     ) -> None:
+        """The periodic update (``state``: the whole next state, the cloud's with it; None
+        for a filter without particles)."""
         phases = self.phases(context)
         done = self._phase_state(context)[:, 1]
         applied = filtered.applied
@@ -327,10 +340,10 @@ class RangeFilter(RelativeStateEstimator):
             if restart.any():
                 filtered = self._restarted(filtered, restart, scale)
                 self._start.restart(discrete_state, filtered.P, restart)
-        state = np.empty((self.batch_size, 2))
-        state[:, 0] = following
-        state[:, 1] = done
-        discrete_state.set_value(self._phase_index, state.ravel())
+        phase_state = np.empty((self.batch_size, 2))
+        phase_state[:, 0] = following
+        phase_state[:, 1] = done
+        discrete_state.set_value(self._phase_index, phase_state.ravel())
         to_particles = following == _PARTICLE
         if self.window is None:
             # The Gaussian prediction of every run (the cloud writes its runs' over it).
@@ -354,14 +367,12 @@ class RangeFilter(RelativeStateEstimator):
                 widened = self._widened(anchor.P, scale)
                 self.write_prediction(discrete_state, anchor.x, widened, runs=restart)
         if to_particles.any():
-            self._advance_particles(context, filtered, discrete_state, phases, redraw, to_particles)
+            self._advance_particles(context, filtered, state, phases, redraw, to_particles)
         elif (
             self.window is not None and self._cloud is not None and self._cloud.live(context).any()
         ):
             # No run keeps particles: none of the clouds is live from now on.
-            self._cloud.advance_window(
-                context, discrete_state, to_particles, to_particles, None, None
-            )
+            self._cloud.advance_window(context, state, to_particles, to_particles, None, None)
 
     def _ranges_contradict(
         self, filtered: FilteredEstimate, ranges: Ranges, runs: np.ndarray
@@ -437,7 +448,7 @@ class RangeFilter(RelativeStateEstimator):
         self,
         context: Context,
         filtered: FilteredEstimate,
-        discrete_state: DiscreteValues,
+        state: State,
         phases: np.ndarray,
         redraw: np.ndarray,
         runs: np.ndarray,
@@ -447,7 +458,7 @@ class RangeFilter(RelativeStateEstimator):
         run entering the particle phase draws them from ``N(draw_x, draw_P)``: its filtered
         Gaussian (with late ranges, its belief at the new anchor), or, for a filter that lost
         the target (``redraw``), its prior widened by NIS/2, the draw weighed by the step's
-        ranges."""
+        ranges (with late ranges, by the window's)."""
         drawn = phases != _PARTICLE
         scale = np.where(redraw, filtered.nis / 2.0, 1.0)[:, np.newaxis, np.newaxis]
         if self.window is not None:
@@ -462,28 +473,11 @@ class RangeFilter(RelativeStateEstimator):
             lost = redraw[:, np.newaxis]
             draw_x = np.where(lost, prior.x, filtered.x)
             draw_P = np.where(lost[:, :, np.newaxis], prior.P, filtered.P) * scale
-        self._cloud_advance(context, filtered, discrete_state, runs, drawn, redraw, draw_x, draw_P)
-
-    def _cloud_advance(
-        self,
-        context: Context,
-        filtered: FilteredEstimate,
-        discrete_state: DiscreteValues,
-        runs: np.ndarray,
-        drawn: np.ndarray,
-        weigh: np.ndarray,
-        draw_x: np.ndarray,
-        draw_P: np.ndarray,
-    ) -> None:
-        """The cloud's step of the runs in ``runs`` (B): those in ``drawn`` (B) draw anew from
-        ``N(draw_x, draw_P)`` ((B, 6), (B, 6, 6)), weighed by the step's ranges where
-        ``weigh`` (B); the others move their particles on (with late ranges through their
-        window: a draw is weighed by the window's ranges as the cloud steps)."""
-        if self.window is not None:
-            self._cloud.advance_window(context, discrete_state, runs, drawn, draw_x, draw_P)
+        if self.window is not None:  # each run through its window: a draw weighed as it steps
+            self._cloud.advance_window(context, state, runs, drawn, draw_x, draw_P)
             return
         self._cloud.advance(
-            context, filtered, discrete_state, (draw_x, draw_P), weigh, drawn=drawn, runs=runs
+            context, filtered, state, (draw_x, draw_P), redraw, drawn=drawn, runs=runs
         )
 
 

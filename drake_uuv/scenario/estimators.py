@@ -217,6 +217,11 @@ class RawRangeOptions(EstimatorOptions):
         """The Gaussian update on the raw ranges (None: the filter carries particles only)."""
         return None
 
+    def carries_particles(self) -> bool:
+        """Whether the filter carries a particle cloud: it has no Gaussian update, or its
+        Gaussian update has the particle bridge."""
+        return self.range_update() is None or self.handover_policy().particle_bridge
+
     def divergence_test(self) -> DivergenceTest | None:
         """The windowed NIS test that sends a run back to its linear start (None: off)."""
         if self.recovery_window is None:

@@ -5,7 +5,7 @@ sonar or two, drawn, weighed draws, navigation noise)."""
 from types import SimpleNamespace
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem, State
 
 from drake_uuv.estimators.contract import Estimate
 from drake_uuv.estimators.particle_cloud import ParticleCloud
@@ -13,6 +13,7 @@ from drake_uuv.models.measurement import VALID
 from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.particle_filter import ParticleFilterParameters
 from drake_uuv.primitives.batch import per_run
+from drake_uuv.testing import set_run_arrays
 
 T = 0.1
 W = np.diag([0.04, 0.04, 0.01])
@@ -28,7 +29,7 @@ class CloudHost(LeafSystem):
     """Hosts a :class:`ParticleCloud` of ``count`` particles for ``batch_size`` runs.
 
     Outputs ``x_hat`` (6), ``P_hat`` (36), ``nis`` (1): the cloud's posterior; discrete state
-    groups 0 and 1 the prediction the cloud writes, then the cloud's groups.
+    groups 0 and 1 the prediction the cloud writes; abstract state 0 the cloud's arrays.
     """
 
     def __init__(
@@ -66,13 +67,18 @@ class CloudHost(LeafSystem):
         self.DeclareVectorOutputPort("x_hat", 6 * batch_size, self._calc_x)
         self.DeclareVectorOutputPort("P_hat", 36 * batch_size, self._calc_P)
         self.DeclareVectorOutputPort("nis", batch_size, self._calc_nis)
-        self.DeclarePeriodicDiscreteUpdateEvent(time_step, 0.0, self._update)
+        # The cloud is abstract state: the update is an unrestricted one (forced: by hand).
+        self.DeclarePeriodicUnrestrictedUpdateEvent(time_step, 0.0, self._update)
+        self.DeclareForcedUnrestrictedUpdateEvent(self._update)
 
     def _read(self, context: Context, name: str) -> np.ndarray:
         return per_run(self._ports[name].Eval(context), self.batch_size)
 
     def depends_on_measurement(self) -> set:
-        return {port.ticket() for port in self._ports.values()} | {self.xd_ticket()}
+        return {port.ticket() for port in self._ports.values()} | {
+            self.xd_ticket(),
+            self.xa_ticket(),
+        }
 
     def ranges(self, context: Context) -> SimpleNamespace:
         return SimpleNamespace(
@@ -101,11 +107,11 @@ class CloudHost(LeafSystem):
         x_state[runs] = np.reshape(x, (B, 6))[runs]
         P_state[runs] = np.reshape(P, (B, 6, 6))[runs]
 
-    def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
+    def _update(self, context: Context, state: State) -> None:
         draw = (self._read(context, "draw_x"), self._read(context, "draw_P").reshape(-1, 6, 6))
         filtered = SimpleNamespace(status=self._read(context, "status")[:, 0])
         self.cloud.advance(
-            context, filtered, discrete_state, draw, self._read(context, "weigh_draw")[:, 0] != 0,
+            context, filtered, state, draw, self._read(context, "weigh_draw")[:, 0] != 0,
             drawn=self._read(context, "drawn")[:, 0] != 0,
             runs=self._read(context, "moving")[:, 0] != 0,
         )  # fmt: skip
@@ -141,8 +147,38 @@ def run_inputs(B: int, seed: int = 0) -> dict[str, np.ndarray]:
     )  # fmt: skip
 
 
+#: The cloud's arrays, after the host's two discrete groups, in a run's state list.
+CLOUD_ARRAYS = ("particles", "log_weights", "live")
+
+
+def state_parts(system: "CloudHost", states: list[np.ndarray]) -> tuple[list, dict]:
+    """A state list ``[x, P, particles, log_weights, live]`` (each ``(B, ·)``) as the host's
+    discrete groups and its cloud's arrays (``assert_batch_equals_runs``' ``states`` and
+    ``arrays``)."""
+    named = dict(zip(CLOUD_ARRAYS, states[2:], strict=True))
+    return list(states[:2]), {system.cloud.state_index: named}
+
+
+def set_states(system: "CloudHost", context: Context, states: list[np.ndarray]) -> None:
+    """Sets a state list (see :func:`state_parts`) in ``context``."""
+    groups, arrays = state_parts(system, states)
+    for group, value in enumerate(groups):
+        context.SetDiscreteState(group, np.asarray(value, dtype=float).ravel())
+    for index, named in arrays.items():
+        set_run_arrays(context, index, **named)
+
+
+def read_states(system: "CloudHost", context: Context) -> list[np.ndarray]:
+    """The state list of ``context`` (see :func:`state_parts`), each ``(B, ·)``."""
+    B = system.batch_size
+    groups = [context.get_discrete_state(g).CopyToVector().reshape(B, -1) for g in (0, 1)]
+    arrays = system.cloud.arrays(context)
+    return groups + [getattr(arrays, name).reshape(B, -1).copy() for name in CLOUD_ARRAYS]
+
+
 def run_states(B: int, count: int, seed: int = 1, spread: float = 0.5) -> list[np.ndarray]:
-    """Discrete states of B live runs: clouds about ``x`` with unequal log weights."""
+    """States of B live runs (see :func:`state_parts`): clouds about ``x`` with unequal log
+    weights."""
     rng = np.random.default_rng(seed)
     x = np.array([-2.0, -2.0, 0.3, 0.0, 0.0, 0.0])
     particles = x + spread * rng.standard_normal((B, count, 6))

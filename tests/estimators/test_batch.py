@@ -19,7 +19,12 @@ from drake_uuv.models.measurement import (
 from drake_uuv.models.statistics import chi2_ppf
 from drake_uuv.models.timing import PingSchedule
 from drake_uuv.scenario import Ekf, Iekf, NavigationErrors, PaperKf, ParticleFilter, Ukf
-from drake_uuv.testing import assert_batch_equals_runs, fixed_context
+from drake_uuv.testing import (
+    after_update,
+    assert_batch_equals_runs,
+    fixed_context,
+    set_run_arrays,
+)
 from tests.conftest import ETA_UNEQUAL, T, W
 
 F = 3
@@ -268,13 +273,16 @@ def random_cloud_runs(
     states[-1][:, 0] = phases
     particles = X_TRUE + 0.3 * rng.standard_normal((B, COUNT, 6))
     log_weights = -0.5 * rng.random((B, COUNT)) ** 2
-    live = (phases == Phase.PARTICLE).astype(float)[:, np.newaxis]
+    live = (phases == Phase.PARTICLE).astype(float)
     accelerations = 0.1 * rng.standard_normal((B, D * 3 * COUNT))
-    states += [particles.reshape(B, -1), log_weights, live, accelerations]
+    cloud = {
+        "particles": particles, "log_weights": log_weights, "live": live,
+        "accelerations": accelerations,
+    }  # fmt: skip
     if errors:
-        states.append(0.01 * rng.standard_normal((B, D * 6 * COUNT)))
+        cloud["jitter"] = 0.01 * rng.standard_normal((B, D * 6 * COUNT))
     if nan_run is not None:
-        states[-5 if errors else -4][nan_run] = np.nan
+        particles[nan_run] = np.nan
     test = system.divergence
     if test is not None:
         recovery = recovery_states(rng, B, test.window)
@@ -283,7 +291,15 @@ def random_cloud_runs(
         states += recovery
     assert len(states) == system.num_discrete_state_groups()
     inputs["particle_seed"] = rng.random((B, 1))
-    return inputs, states
+    return inputs, states, {system.cloud.state_index: cloud}
+
+
+def set_states(context, states: list, arrays: dict) -> None:
+    """Sets discrete groups ``states`` and abstract ``arrays`` (random_cloud_runs') of B runs."""
+    for group, value in enumerate(states):
+        context.SetDiscreteState(group, value.ravel())
+    for index, named in arrays.items():
+        set_run_arrays(context, index, **named)
 
 
 @pytest.mark.parametrize("kind", ["pf", "ekf"])
@@ -296,31 +312,32 @@ def test_with_late_ranges_a_batch_of_clouds_is_each_run_alone(kind: str, B: int)
     make = cloud_maker(kind)
     for seed in (0, 2):
         for tick in (1, 6):
-            inputs, states = random_cloud_runs(make, B, seed, tick, diverging=True)
-            assert_batch_equals_runs(make, inputs, states, time=tick * T)
+            inputs, states, arrays = random_cloud_runs(make, B, seed, tick, diverging=True)
+            assert_batch_equals_runs(make, inputs, states, time=tick * T, arrays=arrays)
 
 
 def test_with_late_ranges_errors_and_navigation_a_batch_of_clouds_is_each_run_alone() -> None:
     make = cloud_maker("pf", errors=True, vehicle_motion="navigation")
-    inputs, states = random_cloud_runs(make, 4, 3, 6, errors=True)
-    assert_batch_equals_runs(make, inputs, states, time=6 * T)
+    inputs, states, arrays = random_cloud_runs(make, 4, 3, 6, errors=True)
+    assert_batch_equals_runs(make, inputs, states, time=6 * T, arrays=arrays)
 
 
 def test_with_late_ranges_a_failed_cloud_leaves_the_others_alone() -> None:
     """Run 1's particles are NaN: nothing raises, its estimate is NaN, and the other runs'
     bits are theirs alone."""
     make = cloud_maker("pf")
-    inputs, states = random_cloud_runs(make, 4, 4, 6, nan_run=1)
-    states[-5][:, 0] = float(Phase.PARTICLE)  # every run on particles, live
-    states[-2][:, 0] = 1.0
-    assert_batch_equals_runs(make, inputs, states, time=6 * T)
+    inputs, states, arrays = random_cloud_runs(make, 4, 4, 6, nan_run=1)
+    # Every run on particles, live (the phase group precedes the recovery's two).
+    states[-3 if make(1).divergence is not None else -1][:, 0] = float(Phase.PARTICLE)
+    (cloud,) = arrays.values()
+    cloud["live"][:] = 1.0
+    assert_batch_equals_runs(make, inputs, states, time=6 * T, arrays=arrays)
     system = make(4)
     context = fixed_context(system, **{k: v.ravel() for k, v in inputs.items()})
-    for group, value in enumerate(states):
-        context.SetDiscreteState(group, value.ravel())
+    set_states(context, states, arrays)
     x = system.GetOutputPort("x_TU_hat").Eval(context).reshape(4, 6)
     assert np.isnan(x[1]).all() and np.isfinite(x[[0, 2, 3]]).all()
-    system.EvalUniquePeriodicDiscreteUpdate(context)
+    after_update(system, context)
 
 
 def test_the_batch_of_clouds_mixes_draws_moves_and_hand_backs() -> None:
@@ -330,14 +347,12 @@ def test_the_batch_of_clouds_mixes_draws_moves_and_hand_backs() -> None:
     hands back too when its cloud's update is Bayes' rule; the tempered update keeps it wider,
     on its particles.)"""
     make = cloud_maker("ekf")
-    inputs, states = random_cloud_runs(make, 5, 2, 6)
+    inputs, states, arrays = random_cloud_runs(make, 5, 2, 6)
     system = make(5)
     context = fixed_context(system, **{k: v.ravel() for k, v in inputs.items()})
     context.SetTime(6 * T)
-    for group, value in enumerate(states):
-        context.SetDiscreteState(group, value.ravel())
-    after = system.CreateDefaultContext()
-    after.SetDiscreteState(system.EvalUniquePeriodicDiscreteUpdate(context))
+    set_states(context, states, arrays)
+    after = after_update(system, context)
     L, R, P = Phase.LINEAR, Phase.RANGE, Phase.PARTICLE
     assert system.phases(context).tolist() == [P, L, P, P, L]
     assert system.phases(after).tolist() == [R, L, P, P, P]

@@ -14,7 +14,7 @@ from drake_uuv.models.raw_range_runs import ekf_update_runs
 from drake_uuv.models.statistics import chi2_ppf
 from drake_uuv.scenario import Ekf, ParticleFilter, Ukf
 from drake_uuv.scenario.validation import ScenarioError
-from drake_uuv.testing import assert_batch_equals_runs, fixed_context
+from drake_uuv.testing import after_update, assert_batch_equals_runs, fixed_context
 from tests.estimators.test_batch import X_TRUE, maker, random_runs, recovery_states, setting
 
 Q_S = np.array([0.3, -1.3, 0.4])
@@ -213,25 +213,25 @@ def test_a_diverged_particle_filter_returns_to_its_linear_start_and_says_why() -
     rng = np.random.default_rng(7)
     states[3][:, 0] = Phase.PARTICLE
     particles = X_TRUE + 0.2 * rng.standard_normal((B, count, 6))
-    states += [particles.reshape(B, -1), np.full((B, count), -np.log(count)), np.ones((B, 1))]
     states += recovery_states(rng, B, 3)
     inputs["particle_seed"] = rng.uniform(size=(B, 1))
     system = make(B)
     context = fixed_context(system, **{k: v.ravel() for k, v in inputs.items()})
     for group, value in enumerate(states):
         context.SetDiscreteState(group, value.ravel())
+    system.cloud.set_particles(context, particles, np.full((B, count), -np.log(count)))
     nis = system.GetOutputPort("nis").Eval(context)
-    after = system.EvalUniquePeriodicDiscreteUpdate(context)
+    after = after_update(system, context)
     test = system.divergence
     valid = np.isfinite(nis)
     dof = (inputs["sonar_status"] == 0).sum(axis=1).astype(float)
-    diverged = test.diverged(test.pushed(states[7], nis, dof, valid))[0] & valid
+    diverged = test.diverged(test.pushed(states[4], nis, dof, valid))[0] & valid
     assert diverged.any() and not diverged.all()
-    next_phase = after.get_vector(3).value().reshape(B, 2)
+    next_phase = after.get_discrete_state(3).value().reshape(B, 2)
     assert (next_phase[diverged] == [int(Phase.LINEAR), 0]).all()
     assert (next_phase[~diverged, 0] == int(Phase.PARTICLE)).all()
-    record = states[8]
-    logged = after.get_vector(8).value().reshape(B, 4)
+    record = states[5]
+    logged = after.get_discrete_state(5).value().reshape(B, 4)
     assert (logged[diverged, 0] == record[diverged, 0] + 1).all()
     assert (logged[diverged, 1] > logged[diverged, 2]).all()
     assert (logged[~diverged, 0] == record[~diverged, 0]).all()

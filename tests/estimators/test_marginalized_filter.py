@@ -36,8 +36,8 @@ def maker(**fields):
 
 
 def particle_runs(B: int, seed: int, nan_run: int | None = None):
-    """Random inputs and states of B runs whose phases mix the linear start, and particles
-    live or not."""
+    """Random inputs, discrete states and cloud arrays of B runs whose phases mix the linear
+    start, and particles live or not."""
     inputs, states = random_runs(maker(), B, seed, nan_run=nan_run)
     rng = np.random.default_rng(seed + 1)
     phases = rng.choice([Phase.LINEAR, Phase.PARTICLE, Phase.PARTICLE], size=B).astype(float)
@@ -49,23 +49,26 @@ def particle_runs(B: int, seed: int, nan_run: int | None = None):
     if nan_run is not None:
         particles[nan_run] = np.nan
         Sigma[nan_run] = np.nan
-    live = (phases == Phase.PARTICLE).astype(float)[:, None]
-    states += [particles.reshape(B, -1), log_weights, live, Sigma.reshape(B, 9)]
+    live = (phases == Phase.PARTICLE).astype(float)
+    states.append(Sigma.reshape(B, 9))
+    cloud = maker()(1).cloud.state_index
+    arrays = {cloud: {"particles": particles, "log_weights": log_weights, "live": live}}
     inputs["particle_seed"] = rng.uniform(size=(B, 1))
-    return inputs, states
+    return inputs, states, arrays
 
 
 @pytest.mark.parametrize("B", [1, 3, 5])
 def test_a_batch_step_is_each_run_alone(B: int) -> None:
-    inputs, states = particle_runs(B, seed=B)
-    assert_batch_equals_runs(maker(), inputs, states)
+    inputs, states, arrays = particle_runs(B, seed=B)
+    assert_batch_equals_runs(maker(), inputs, states, arrays=arrays)
 
 
 def test_a_nan_run_leaves_the_others_alone() -> None:
-    inputs, states = particle_runs(4, seed=11, nan_run=2)
+    inputs, states, arrays = particle_runs(4, seed=11, nan_run=2)
     states[3][:, 0] = float(Phase.PARTICLE)
-    states[6][:] = 1.0
-    assert_batch_equals_runs(maker(), inputs, states)
+    (cloud,) = arrays.values()
+    cloud["live"][:] = 1.0
+    assert_batch_equals_runs(maker(), inputs, states, arrays=arrays)
 
 
 def _simulate_ranges(steps: int, rng: np.random.Generator):

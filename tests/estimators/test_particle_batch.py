@@ -10,8 +10,16 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from drake_uuv.estimators.particle_cloud import bytes_per_run
 from drake_uuv.models.measurement import DROPPED
-from drake_uuv.testing import assert_batch_equals_runs
-from tests.estimators.cloud_host import PORTS, CloudHost, run_inputs, run_states
+from drake_uuv.testing import after_update, assert_batch_equals_runs
+from tests.estimators.cloud_host import (
+    PORTS,
+    CloudHost,
+    read_states,
+    run_inputs,
+    run_states,
+    set_states,
+    state_parts,
+)
 
 COUNT = 300
 
@@ -48,7 +56,10 @@ def branches(B: int) -> tuple[dict[str, np.ndarray], list[np.ndarray]]:
 @pytest.mark.parametrize("B", [1, 2, 8, 9])
 def test_a_batch_step_is_each_run_alone(B):
     inputs, states = branches(B)
-    assert_batch_equals_runs(lambda b: CloudHost(COUNT, batch_size=b), inputs, states)
+    groups, arrays = state_parts(CloudHost(COUNT, batch_size=B), states)
+    assert_batch_equals_runs(
+        lambda b: CloudHost(COUNT, batch_size=b), inputs, groups, arrays=arrays
+    )
 
 
 def step(B: int, inputs: dict, states: list) -> tuple[dict[str, np.ndarray], list[np.ndarray]]:
@@ -57,15 +68,12 @@ def step(B: int, inputs: dict, states: list) -> tuple[dict[str, np.ndarray], lis
     context = system.CreateDefaultContext()
     for name, value in inputs.items():
         system.GetInputPort(name).FixValue(context, np.asarray(value, dtype=float).ravel())
-    for group, value in enumerate(states):
-        context.SetDiscreteState(group, np.asarray(value, dtype=float).ravel())
+    set_states(system, context, states)
     outputs = {
         name: system.GetOutputPort(name).Eval(context).reshape(B, -1).copy()
         for name in ("x_hat", "P_hat", "nis")
     }
-    update = system.EvalUniquePeriodicDiscreteUpdate(context)
-    after = [update.get_vector(g).CopyToVector().reshape(B, -1) for g in range(len(states))]
-    return outputs, after
+    return outputs, read_states(system, after_update(system, context))
 
 
 def test_the_steps_of_every_branch_are_what_they_should_be():
@@ -145,10 +153,8 @@ def test_each_run_draws_its_own_target_acceleration_noise():
     context = system.CreateDefaultContext()
     for name, value in inputs.items():
         system.GetInputPort(name).FixValue(context, np.asarray(value, dtype=float).ravel())
-    for group, value in enumerate(states):
-        context.SetDiscreteState(group, value.ravel())
-    update = system.EvalUniquePeriodicDiscreteUpdate(context)
-    particles = update.get_vector(2).CopyToVector().reshape(B, count, 6)
+    set_states(system, context, states)
+    particles = read_states(system, after_update(system, context))[2].reshape(B, count, 6)
     # The acceleration noise ū of each particle, from its velocity: ϑ⁺ = ϑ + t (a − ū).
     t = Bu[3, 0]
     noise = inputs["acceleration"][:, None, :] - (particles[:, :, 3:] - x[3:]) / t
