@@ -9,7 +9,7 @@ not change) must update it without restriction: a discrete update cannot write a
 state. Drake's Simulator applies every unrestricted update of a tick before it computes the
 discrete ones, so the other systems' updates at that tick would read this estimator's *next*
 state through its outputs. The outputs are published instead: the update keeps, with the
-tick, what every output showed before it, and an output asked at that same tick (by the
+time, what every output showed before it, and an output asked at that same time (by the
 other systems' updates) shows that; asked at any other time (the loggers at the next tick,
 before its updates; a test) it is computed from the state as always. The loop's numbers are a
 discrete update's, bit for bit.
@@ -19,13 +19,28 @@ What it reads of the estimator: ``batch_size``, ``_time_step``, ``_filtered``, `
 :meth:`_record_window` and, with late ranges, ``_stepped_before``.
 """
 
+import math
 from collections.abc import Callable
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, OutputPort, State
 
-from drake_uuv.primitives.run_arrays import RunArrays
+
+class Shown:
+    """What the published outputs showed before the update at ``time`` (NaN: none yet), in
+    their order of declaration. Never written in place: Drake's copies share it."""
+
+    __slots__ = ("time", "values")
+
+    def __init__(self, time: float = math.nan, values: list[np.ndarray] | None = None) -> None:
+        self.time, self.values = time, values or []
+
+    def __copy__(self) -> "Shown":
+        return self
+
+    def __deepcopy__(self, memo: dict) -> "Shown":
+        return self
 
 
 class EstimatorOutputs:
@@ -57,13 +72,11 @@ class EstimatorOutputs:
 
     def _declare_published(self, abstract_state: bool) -> None:
         """Whether the estimator holds abstract state; if so, the abstract state that keeps
-        what the outputs showed before this tick's update (``tick``: the tick it was kept at,
-        −1 before the first)."""
+        what the outputs showed before this tick's update (:class:`Shown`)."""
         self._abstract = bool(abstract_state)
         self._published_ports: list[OutputPort] = []
         if self._abstract:
-            before = RunArrays(tick=np.full(self.batch_size, -1.0))
-            self._published_index = self.DeclareAbstractState(AbstractValue.Make(before))
+            self._published_index = self.DeclareAbstractState(AbstractValue.Make(Shown()))
 
     def _declare_update(self, discrete_update: Callable) -> None:
         """The periodic update: ``discrete_update`` or, with abstract state, the unrestricted
@@ -102,32 +115,25 @@ class EstimatorOutputs:
         return self.declare_output(name, size, calc, {self.discrete_state_ticket(index)})
 
     def _update_state(self, context: Context, state: State) -> None:
-        B = self.batch_size
-        shown = {
-            port.get_name(): np.array(port.Eval(context), dtype=float).reshape(B, -1)
-            for port in self._published_ports
-        }
+        shown = Shown(context.get_time(), [port.Eval(context) for port in self._published_ports])
         self._step_state(context, state)
-        tick = np.full(B, float(self._tick(context)))
         published = state.get_mutable_abstract_state().get_mutable_value(self._published_index)
-        published.set_value(RunArrays(tick=tick, **shown))
+        published.set_value(shown)
 
     def _step_state(self, context: Context, state: State) -> None:
         self.advance_state(context, self._filtered.Eval(context), state)
         if self._window is not None:
             self._record_window(context, state.get_mutable_discrete_state())
 
-    def _tick(self, context: Context) -> int:
-        return round(context.get_time() / self._time_step)
-
     def _published(self, name: str, calc: Callable) -> Callable:
         """``calc`` of the output ``name``, or what it showed before this tick's update when
-        asked at the tick of an update already applied."""
+        asked at the time of an update already applied."""
+        index, slot = self._published_index, len(self._published_ports)
 
         def published(context: Context, output: BasicVector) -> None:
-            shown = context.get_abstract_state(self._published_index).get_value()
-            if shown.tick[0] == self._tick(context):
-                output.set_value(shown.runs()[name].ravel())
+            shown = context.get_abstract_state(index).get_value()
+            if shown.time == context.get_time():
+                output.set_value(shown.values[slot])
             else:
                 calc(context, output)
 

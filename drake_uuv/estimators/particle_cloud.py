@@ -46,8 +46,8 @@ Accessors: :meth:`~ParticleCloud.particles` ``(B, N, 6)`` relative,
 :meth:`~ParticleCloud.log_weights` ``(B, N)``, :meth:`~ParticleCloud.set_particles`,
 :meth:`~ParticleCloud.live`. Memory: :func:`bytes_per_run` is what a batch holds per run
 (the state twice at a step that moves the clouds, the context's and the update's new one, and
-the posterior's log weights and weights), so a study can size its batches: at N = 5000, 0.64 MB a run; at N = 20 000,
-2.56 MB (B = 100: 256 MB).
+the posterior's log weights and weights), so a study can size its batches: at N = 5000,
+0.64 MB a run; at N = 20 000, 2.56 MB (B = 100: 256 MB).
 
 What the cloud reads of its host: ``model`` (A, B, W), ``window``, ``error_model``,
 ``depends_on_measurement()``, ``ranges(context)`` (``z``, ``valid``, ``q_s``, ``exact``,
@@ -93,8 +93,8 @@ def bytes_per_run(count: int, window: int = 0, navigation_noise: bool = False) -
     """The bytes a batch holds per run for a cloud of ``count`` particles, at a step that moves
     it: its state (particles, log weights, live flag; with late ranges each window step's
     accelerations and, with ``navigation_noise``, navigation noise) twice, the context's and
-    the periodic update's new one, and the posterior's log weights and weights (the cache). The kernels' work
-    arrays (about 12 N doubles) are the batch's, not per run."""
+    the periodic update's new one, and the posterior's log weights and weights (the cache).
+    The kernels' work arrays (about 12 N doubles) are the batch's, not per run."""
     state = count * (STATE_SIZE + 1) + 1 + window * count * (3 + (6 if navigation_noise else 0))
     return 8 * (2 * state + 2 * count)
 
