@@ -273,12 +273,12 @@ class LateRangeSteps:
             return
         drawn = np.asarray(drawn, dtype=bool).reshape(B) & moving
         seeds = np.asarray(self._seed_port.Eval(context), dtype=float)
-        # The runs not moving keep their arrays; the moving ones' are written below.
-        out, out_log_weights = before.particles.copy(), before.log_weights.copy()
-        u_next = before.accelerations.copy()
+        # New arrays: the runs not moving keep theirs, the moving ones' are written below.
+        out, out_log_weights = _kept(before.particles, moving), _kept(before.log_weights, moving)
+        u_next = _kept(before.accelerations, moving)
         jitter_next = Q = None
         if self._jittered:
-            jitter_next = before.jitter.copy()
+            jitter_next = _kept(before.jitter, moving)
             Q = host.navigation_process_noise(context)
         moved = moving & ~drawn
         if moved.any():
@@ -311,6 +311,9 @@ class LateRangeSteps:
                 except np.linalg.LinAlgError:  # a failed run: NaN, the others go on
                     out[r] = np.nan
                     out_log_weights[r] = np.nan
+                    u_next[r] = before.accelerations[r]  # its draws as they were
+                    if jitter_next is not None:
+                        jitter_next[r] = before.jitter[r]
         host.write_prediction(state.get_mutable_discrete_state(), x, P, runs=moving)
         arrays = {"particles": out, "log_weights": out_log_weights, "accelerations": u_next}
         if jitter_next is not None:
@@ -382,6 +385,16 @@ class LateRangeSteps:
             _shift_window(jitter, chosen, jitter_next)
             self._draw_jitter(root, rng, jitter_next[-1])
         return log_weights
+
+
+def _kept(array: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """A new array like ``array`` (B, ...) holding the rows of the runs not ``moving`` (B);
+    the moving runs' rows are left for the caller to write whole (a copy of them would be
+    overwritten)."""
+    new = np.empty_like(array)
+    for r in np.flatnonzero(~moving):
+        new[r] = array[r]
+    return new
 
 
 def _shift_window(slots: np.ndarray, chosen: np.ndarray | None, out: np.ndarray) -> None:
