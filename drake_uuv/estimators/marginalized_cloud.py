@@ -33,6 +33,7 @@ from drake_uuv.models.marginalized_kernels import marginalized_advance
 from drake_uuv.models.measurement import VALID
 from drake_uuv.models.particle_filter import STATE_SIZE, ParticleFilterParameters
 from drake_uuv.models.particle_random import cloud_keys
+from drake_uuv.primitives.run_arrays import kept_rows
 from drake_uuv.scenario.estimators import MarginalizedParticleFilter
 
 LATE_RANGES = (
@@ -133,7 +134,8 @@ class MarginalizedCloud(ParticleCloud):
         before = self.arrays(context)
         discrete_state = state.get_mutable_discrete_state()
         # The runs not moving keep their particles and Σ: the kernel writes the moving ones'.
-        out, out_log_weights = before.particles.copy(), before.log_weights.copy()
+        out = kept_rows(before.particles, ~moving)
+        out_log_weights = kept_rows(before.log_weights, ~moving)
         out_Sigma = discrete_state.get_mutable_value(self._Sigma_index).reshape(B, 3, 3)
         x, P = np.empty((B, 6)), np.empty((B, 6, 6))
         marginalized_advance(

@@ -86,7 +86,7 @@ from drake_uuv.models.particle_kernels import cloud_posterior, psd_factors
 from drake_uuv.models.particle_random import cloud_keys
 from drake_uuv.primitives.batch import batch_size_field
 from drake_uuv.primitives.random_input import declare_random_input
-from drake_uuv.primitives.run_arrays import RunArrays
+from drake_uuv.primitives.run_arrays import RunArrays, kept_rows
 
 
 def bytes_per_run(count: int, window: int = 0, navigation_noise: bool = False) -> int:
@@ -389,8 +389,9 @@ class ParticleCloud(LateRangeSteps):
         else:  # the modelled navigation errors' process noise, a factor per run
             jitter = psd_factors(_runs(Q_nav, B, 6, 6))
         before = self.arrays(context)
-        # The runs not moving keep their particles: the kernel writes the moving ones'.
-        out, out_log_weights = before.particles.copy(), before.log_weights.copy()
+        # The runs not moving keep their particles: the kernel writes the moving ones' whole.
+        out = kept_rows(before.particles, ~moving)
+        out_log_weights = kept_rows(before.log_weights, ~moving)
         x, P = np.empty((B, 6)), np.empty((B, 6, 6))
         cloud_advance(
             before.particles, before.log_weights, reweigh,

@@ -34,6 +34,7 @@ from drake_uuv.models.particle_window_kernels import (
 )
 from drake_uuv.models.timing import transition
 from drake_uuv.primitives.batch import per_run
+from drake_uuv.primitives.run_arrays import kept_rows
 
 # The uniform draw of the random port becomes a generator seed with this many bits (a double
 # in [0, 1) carries 53).
@@ -274,11 +275,15 @@ class LateRangeSteps:
         drawn = np.asarray(drawn, dtype=bool).reshape(B) & moving
         seeds = np.asarray(self._seed_port.Eval(context), dtype=float)
         # New arrays: the runs not moving keep theirs, the moving ones' are written below.
-        out, out_log_weights = _kept(before.particles, moving), _kept(before.log_weights, moving)
-        u_next = _kept(before.accelerations, moving)
+        kept = ~moving
+        out, out_log_weights = (
+            kept_rows(before.particles, kept),
+            kept_rows(before.log_weights, kept),
+        )
+        u_next = kept_rows(before.accelerations, kept)
         jitter_next = Q = None
         if self._jittered:
-            jitter_next = _kept(before.jitter, moving)
+            jitter_next = kept_rows(before.jitter, kept)
             Q = host.navigation_process_noise(context)
         moved = moving & ~drawn
         if moved.any():
@@ -385,16 +390,6 @@ class LateRangeSteps:
             _shift_window(jitter, chosen, jitter_next)
             self._draw_jitter(root, rng, jitter_next[-1])
         return log_weights
-
-
-def _kept(array: np.ndarray, moving: np.ndarray) -> np.ndarray:
-    """A new array like ``array`` (B, ...) holding the rows of the runs not ``moving`` (B);
-    the moving runs' rows are left for the caller to write whole (a copy of them would be
-    overwritten)."""
-    new = np.empty_like(array)
-    for r in np.flatnonzero(~moving):
-        new[r] = array[r]
-    return new
 
 
 def _shift_window(slots: np.ndarray, chosen: np.ndarray | None, out: np.ndarray) -> None:

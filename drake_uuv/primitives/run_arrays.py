@@ -65,3 +65,13 @@ class RunArrays:
     def __repr__(self) -> str:
         shapes = ", ".join(f"{name}={array.shape}" for name, array in self._arrays.items())
         return f"RunArrays({shapes})"
+
+
+def kept_rows(array: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """A new writable array like ``array`` (B, ...) holding the rows of the runs in ``keep``
+    (B bool); the other rows are left unset, for an update that writes them whole (copying
+    them first would be wasted)."""
+    new = np.empty_like(array)
+    for r in np.flatnonzero(keep):
+        new[r] = array[r]
+    return new
