@@ -307,6 +307,8 @@ class RangeFilter(RelativeStateEstimator):
     ) -> None:
         """The periodic update (``state``: the whole next state, the cloud's with it; None
         for a filter without particles)."""
+        if state is None and self._cloud is not None:
+            raise ValueError("state: a filter with particles advances its whole State")
         phases = self.phases(context)
         done = self._phase_state(context)[:, 1]
         applied = filtered.applied

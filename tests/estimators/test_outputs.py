@@ -106,3 +106,10 @@ def test_an_idle_cloud_is_carried_from_step_to_step_without_a_copy() -> None:
     simulator.AdvanceTo(STEPS * estimator.time_step)
     assert not estimator.cloud.live(context).any()
     assert estimator.cloud.arrays(context).particles is start
+
+
+def test_a_filter_with_particles_refuses_to_advance_without_its_whole_state() -> None:
+    system = make("pf")
+    context = system.CreateDefaultContext()
+    with pytest.raises(ValueError, match="state: a filter with particles advances its whole"):
+        system.advance(context, None, context.get_mutable_discrete_state())
