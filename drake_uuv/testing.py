@@ -34,6 +34,19 @@ def after_update(system: System, context: Context) -> Context:
     return after
 
 
+def set_states(
+    context: Context,
+    states: Sequence[np.ndarray],
+    arrays: Mapping[int, Mapping[str, np.ndarray]] | None = None,
+) -> None:
+    """Sets each discrete-state group ``g`` to ``states[g]`` (flattened) and each abstract
+    state's named arrays of ``arrays`` (:func:`set_run_arrays`)."""
+    for group, value in enumerate(states):
+        context.SetDiscreteState(group, np.asarray(value, dtype=float).ravel())
+    for index, named in (arrays or {}).items():
+        set_run_arrays(context, index, **named)
+
+
 def set_run_arrays(context: Context, index: int, **arrays: np.ndarray) -> None:
     """Replaces named arrays of the :class:`~drake_uuv.primitives.run_arrays.RunArrays` held
     in abstract state ``index`` (each ``(B, ...)``; a flat ``(B, n)`` row is reshaped)."""
@@ -99,10 +112,14 @@ def _step_context(
     context.SetTime(time)
     for name, value in inputs.items():
         system.GetInputPort(name).FixValue(context, value[runs].ravel())
-    for group, value in enumerate(states or []):
-        context.SetDiscreteState(group, np.asarray(value, dtype=float)[runs].ravel())
-    for index, named in (arrays or {}).items():
-        set_run_arrays(context, index, **{name: value[runs] for name, value in named.items()})
+    set_states(
+        context,
+        [np.asarray(value, dtype=float)[runs] for value in states or []],
+        {
+            i: {name: value[runs] for name, value in named.items()}
+            for i, named in (arrays or {}).items()
+        },
+    )
     return context
 
 

@@ -26,8 +26,10 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, OutputPort, State
 
+from drake_uuv.primitives.run_arrays import SharedValue
 
-class Shown:
+
+class Shown(SharedValue):
     """What the published outputs showed before the update at ``time`` (NaN: none yet), in
     their order of declaration. Never written in place: Drake's copies share it."""
 
@@ -35,12 +37,6 @@ class Shown:
 
     def __init__(self, time: float = math.nan, values: list[np.ndarray] | None = None) -> None:
         self.time, self.values = time, values or []
-
-    def __copy__(self) -> "Shown":
-        return self
-
-    def __deepcopy__(self, memo: dict) -> "Shown":
-        return self
 
 
 class EstimatorOutputs:

@@ -66,14 +66,7 @@ class StepRanges:
 
     def vehicle(self, tau: float, time_step: float) -> np.ndarray:
         """The navigated state ``[p, v]`` at ``t_k + τ`` (navigated motion)."""
-        s = tau / time_step
-        p0, v0, p1, v1 = self.start[:3], self.start[3:], self.end[:3], self.end[3:]
-        return np.concatenate(
-            [
-                interpolate_position(p0, v0, p1, v1, s, time_step),
-                interpolate_velocity(p0, v0, p1, v1, s, time_step),
-            ]
-        )
+        return _navigated_state(self.start, self.end, tau / time_step, time_step)
 
 
 @dataclass(frozen=True)
@@ -103,15 +96,7 @@ class StepBatch:
 
     def vehicle(self, tau: np.ndarray, time_step: float) -> np.ndarray:
         """The navigated states ``[p, v]`` (B, 6) at ``t_k + τ`` (navigated motion)."""
-        s = (tau / time_step)[:, np.newaxis]
-        p0, v0, p1, v1 = self.start[:, :3], self.start[:, 3:], self.end[:, :3], self.end[:, 3:]
-        return np.concatenate(
-            [
-                interpolate_position(p0, v0, p1, v1, s, time_step),
-                interpolate_velocity(p0, v0, p1, v1, s, time_step),
-            ],
-            axis=1,
-        )
+        return _navigated_state(self.start, self.end, (tau / time_step)[:, np.newaxis], time_step)
 
     def run(self, i: int) -> StepRanges:
         """Run i's step."""
@@ -119,6 +104,21 @@ class StepBatch:
             self.step, self.tau[i], self.samples[i], self.status[i], self.new[i],
             self.acceleration[i], self.start[i], self.end[i], self.R_start[i], self.R_end[i],
         )  # fmt: skip
+
+
+def _navigated_state(
+    start: np.ndarray, end: np.ndarray, s: float | np.ndarray, time_step: float
+) -> np.ndarray:
+    """``[p, v]`` at fraction ``s`` of a step between the navigated states ``start`` and
+    ``end`` (``[p, v]`` each, one run's (6) or a batch's (B, 6) with ``s`` (B, 1))."""
+    p0, v0, p1, v1 = start[..., :3], start[..., 3:], end[..., :3], end[..., 3:]
+    return np.concatenate(
+        [
+            interpolate_position(p0, v0, p1, v1, s, time_step),
+            interpolate_velocity(p0, v0, p1, v1, s, time_step),
+        ],
+        axis=-1,
+    )
 
 
 class PingWindow:

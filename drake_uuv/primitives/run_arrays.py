@@ -16,7 +16,20 @@ from typing import Self
 import numpy as np
 
 
-class RunArrays:
+class SharedValue:
+    """A value never written in place, so that its copies can be itself: the base of an
+    abstract state that Drake's copies share (``copy``/``deepcopy`` return the value)."""
+
+    __slots__ = ()
+
+    def __copy__(self) -> Self:
+        return self
+
+    def __deepcopy__(self, memo: dict) -> Self:
+        return self
+
+
+class RunArrays(SharedValue):
     """Named arrays, each with a leading run axis (B), immutable: copies share them.
 
     ``RunArrays(particles=array, live=array)``; ``value.particles`` reads one (a read-only
@@ -44,12 +57,6 @@ class RunArrays:
 
     def __setattr__(self, name: str, value: object) -> None:
         raise AttributeError("RunArrays is immutable: build a new one with replaced()")
-
-    def __copy__(self) -> Self:
-        return self
-
-    def __deepcopy__(self, memo: dict) -> Self:
-        return self
 
     def replaced(self, **arrays: np.ndarray) -> "RunArrays":
         """A new value: these arrays in place of the same-named ones, the others shared."""

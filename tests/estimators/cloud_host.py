@@ -13,7 +13,7 @@ from drake_uuv.models.measurement import VALID
 from drake_uuv.models.motion import double_integrator
 from drake_uuv.models.particle_filter import ParticleFilterParameters
 from drake_uuv.primitives.batch import per_run
-from drake_uuv.testing import set_run_arrays
+from drake_uuv.testing import set_states as set_context_states
 
 T = 0.1
 W = np.diag([0.04, 0.04, 0.01])
@@ -161,11 +161,7 @@ def state_parts(system: "CloudHost", states: list[np.ndarray]) -> tuple[list, di
 
 def set_states(system: "CloudHost", context: Context, states: list[np.ndarray]) -> None:
     """Sets a state list (see :func:`state_parts`) in ``context``."""
-    groups, arrays = state_parts(system, states)
-    for group, value in enumerate(groups):
-        context.SetDiscreteState(group, np.asarray(value, dtype=float).ravel())
-    for index, named in arrays.items():
-        set_run_arrays(context, index, **named)
+    set_context_states(context, *state_parts(system, states))
 
 
 def read_states(system: "CloudHost", context: Context) -> list[np.ndarray]:

@@ -23,7 +23,7 @@ from drake_uuv.testing import (
     after_update,
     assert_batch_equals_runs,
     fixed_context,
-    set_run_arrays,
+    set_states,
 )
 from tests.conftest import ETA_UNEQUAL, T, W
 
@@ -292,14 +292,6 @@ def random_cloud_runs(
     assert len(states) == system.num_discrete_state_groups()
     inputs["particle_seed"] = rng.random((B, 1))
     return inputs, states, {system.cloud.state_index: cloud}
-
-
-def set_states(context, states: list, arrays: dict) -> None:
-    """Sets discrete groups ``states`` and abstract ``arrays`` (random_cloud_runs') of B runs."""
-    for group, value in enumerate(states):
-        context.SetDiscreteState(group, value.ravel())
-    for index, named in arrays.items():
-        set_run_arrays(context, index, **named)
 
 
 @pytest.mark.parametrize("kind", ["pf", "ekf"])
