@@ -48,9 +48,13 @@ def move_into(
     half = 0.5 * tau * tau
     for i in range(n):
         for k in range(3):
-            _move_axis(
-                particles[i, k], particles[i, 3 + k], i, k, i, noisy, jitter, u, tau, half, c, out
-            )
+            q, v = particles[i, k], particles[i, 3 + k]
+            if noisy:
+                q += jitter[k, i]
+                v += jitter[3 + k, i]
+            a = u[k, i]
+            out[i, k] = q + tau * v - half * a + c[k]
+            out[i, 3 + k] = v - tau * a + c[3 + k]
 
 
 @njit(cache=True, fastmath=CONTRACT)
@@ -73,21 +77,13 @@ def move_resampled_into(
     for i in range(n):
         j = chosen[i] if picked else i
         for k in range(3):
-            _move_axis(
-                particles[k, i], particles[3 + k, i], i, k, j, noisy, jitter, u, tau, half, c, out
-            )
-
-
-@njit(inline="always", fastmath=CONTRACT)
-def _move_axis(q, v, i, k, j, noisy, jitter, u, tau, half, c, out):  # pragma: no cover - compiled
-    """Axis k of particle i's move from position ``q`` and velocity ``v``, with particle j's
-    navigation noise (if ``noisy``) and acceleration: the double integrator over ``tau``."""
-    if noisy:
-        q += jitter[k, j]
-        v += jitter[3 + k, j]
-    a = u[k, j]
-    out[i, k] = q + tau * v - half * a + c[k]
-    out[i, 3 + k] = v - tau * a + c[3 + k]
+            q, v = particles[k, i], particles[3 + k, i]
+            if noisy:
+                q += jitter[k, j]
+                v += jitter[3 + k, j]
+            a = u[k, j]
+            out[i, k] = q + tau * v - half * a + c[k]
+            out[i, 3 + k] = v - tau * a + c[3 + k]
 
 
 @njit(cache=True, fastmath=CONTRACT)
