@@ -39,11 +39,12 @@ import numpy as np
 from numba import njit
 
 from drake_uuv.models.particle_advance import (
-    _draw_gaussian,
-    _draw_gaussian_call,
     _kernel_from_range_bearing,
     _prepare_resampling,
     _range_bearing_cloud,
+    _six,
+    gaussian_draw,
+    lower_entries,
     starting_weights,
 )
 from drake_uuv.models.particle_kernels import (
@@ -223,8 +224,11 @@ def _draw_marginal(
         for j in range(3):
             L[3 + i, 3 + j] = 0.0
     n = out.shape[0]
+    m, factor = _six(mean), lower_entries(L)
     for i in range(n):
-        _draw_gaussian_call(key, i, DRAW_SLOT, mean, L, offset, out[i])
+        d = gaussian_draw(key, i, DRAW_SLOT, m, factor)
+        for k in range(6):
+            out[i, k] = d[k] - offset[k]
         lw[i] = -math.log(n)
     normalise_into(lw, weights)
 
@@ -278,16 +282,21 @@ def _move_run(
             lw[i] = -math.log(n)
             weights[i] = 1.0 / n
     p, e = np.empty(6), np.empty(6)
+    cloud = drawn if use_drawn else source
+    kernel_mean, kernel_factor = _six(shift), lower_entries(L)
     for i in range(n):
         row = chosen[i] if resample else i
-        p[:] = drawn[row] if use_drawn else source[row]
+        for k in range(6):  # not a view of the row: see gaussian_draw
+            p[k] = cloud[row, k]
         if radius > 0.0:
-            _draw_gaussian(key, i, KERNEL_SLOT, shift, L, zero, e)
-            _kernel_from_range_bearing(e, shrink, local[row], E, radius, offset, p)
-        elif resample and bandwidth > 0.0:
-            _draw_gaussian(key, i, KERNEL_SLOT, shift, L, zero, e)
+            d = gaussian_draw(key, i, KERNEL_SLOT, kernel_mean, kernel_factor)
             for k in range(6):
-                p[k] = e[k] + shrink * p[k]
+                e[k] = d[k]
+            _kernel_from_range_bearing(e, shrink, local, row, E, radius, offset, p)
+        elif resample and bandwidth > 0.0:
+            d = gaussian_draw(key, i, KERNEL_SLOT, kernel_mean, kernel_factor)
+            for k in range(6):
+                p[k] = d[k] + shrink * p[k]
         e0 = normal(key, slot_counter(i, ACCELERATION_SLOT))
         e1 = normal(key, slot_counter(i, ACCELERATION_SLOT + 1))
         e2 = normal(key, slot_counter(i, ACCELERATION_SLOT + 2))

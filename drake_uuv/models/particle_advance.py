@@ -164,60 +164,61 @@ def _draw_cloud(
     ``weights``); ``L`` work space."""
     psd_factor(cov, L)
     n = out.shape[0]
+    m, factor = _six(mean), lower_entries(L)
     for i in range(n):
-        _draw_gaussian_call(key, i, DRAW_SLOT, mean, L, offset, out[i])
+        d = gaussian_draw(key, i, DRAW_SLOT, m, factor)
+        for k in range(6):
+            out[i, k] = d[k] - offset[k]
         lw[i] = -math.log(n)
     normalise_into(lw, weights)
 
 
-@njit(inline="always", fastmath=CONTRACT)
-def _draw_gaussian(
-    key: np.uint64,
-    particle: int,
-    slot: int,
-    mean: np.ndarray,
-    L: np.ndarray,
-    offset: np.ndarray,
-    out: np.ndarray,
-) -> None:  # pragma: no cover - compiled
-    """A draw of ``N(mean, L Lᵀ)`` (``L`` lower triangular, as :func:`psd_factor` gives it)
-    less ``offset`` from six slots of a particle, in ``out``."""
+@njit
+def _six(v: np.ndarray) -> tuple:  # pragma: no cover - compiled
+    """The six values of ``v`` as a tuple."""
+    return (v[0], v[1], v[2], v[3], v[4], v[5])
+
+
+@njit
+def lower_entries(L: np.ndarray) -> tuple:  # pragma: no cover - compiled
+    """The 21 entries of a lower-triangular 6×6 ``L``, row by row, as a tuple: the draws take
+    their factor as values, not as an array (see :func:`gaussian_draw`)."""
+    return (
+        L[0, 0],
+        L[1, 0], L[1, 1],
+        L[2, 0], L[2, 1], L[2, 2],
+        L[3, 0], L[3, 1], L[3, 2], L[3, 3],
+        L[4, 0], L[4, 1], L[4, 2], L[4, 3], L[4, 4],
+        L[5, 0], L[5, 1], L[5, 2], L[5, 3], L[5, 4], L[5, 5],
+    )  # fmt: skip
+
+
+@njit(fastmath=CONTRACT)
+def gaussian_draw(
+    key: np.uint64, particle: int, slot: int, mean: tuple, L: tuple
+) -> tuple:  # pragma: no cover - compiled
+    """A draw of ``N(mean, L Lᵀ)`` from six slots of a particle (``mean`` 6 values, ``L`` the
+    21 of :func:`lower_entries`, lower triangular as :func:`psd_factor` gives it).
+
+    Values in and out, no arrays: a compiled function that takes arrays and branches (the
+    ziggurat's rare second try does) keeps their reference counts' atomic operations on every
+    call, which cost a particle's loop more than its draws."""
     e0 = normal(key, slot_counter(particle, slot))
     e1 = normal(key, slot_counter(particle, slot + 1))
     e2 = normal(key, slot_counter(particle, slot + 2))
     e3 = normal(key, slot_counter(particle, slot + 3))
     e4 = normal(key, slot_counter(particle, slot + 4))
     e5 = normal(key, slot_counter(particle, slot + 5))
-    out[0] = mean[0] + L[0, 0] * e0 - offset[0]
-    out[1] = mean[1] + (L[1, 0] * e0 + L[1, 1] * e1) - offset[1]
-    out[2] = mean[2] + (L[2, 0] * e0 + L[2, 1] * e1 + L[2, 2] * e2) - offset[2]
-    out[3] = mean[3] + (L[3, 0] * e0 + L[3, 1] * e1 + L[3, 2] * e2 + L[3, 3] * e3) - offset[3]
-    out[4] = (
-        mean[4] + (L[4, 0] * e0 + L[4, 1] * e1 + L[4, 2] * e2 + L[4, 3] * e3 + L[4, 4] * e4)
-        - offset[4]
-    )  # fmt: skip
-    out[5] = (
+    return (
+        mean[0] + L[0] * e0,
+        mean[1] + (L[1] * e0 + L[2] * e1),
+        mean[2] + (L[3] * e0 + L[4] * e1 + L[5] * e2),
+        mean[3] + (L[6] * e0 + L[7] * e1 + L[8] * e2 + L[9] * e3),
+        mean[4] + (L[10] * e0 + L[11] * e1 + L[12] * e2 + L[13] * e3 + L[14] * e4),
         mean[5] + (
-            L[5, 0] * e0 + L[5, 1] * e1 + L[5, 2] * e2 + L[5, 3] * e3 + L[5, 4] * e4
-            + L[5, 5] * e5
-        ) - offset[5]
+            L[15] * e0 + L[16] * e1 + L[17] * e2 + L[18] * e3 + L[19] * e4 + L[20] * e5
+        ),
     )  # fmt: skip
-
-
-@njit(fastmath=CONTRACT)
-def _draw_gaussian_call(
-    key: np.uint64,
-    particle: int,
-    slot: int,
-    mean: np.ndarray,
-    L: np.ndarray,
-    offset: np.ndarray,
-    out: np.ndarray,
-) -> None:  # pragma: no cover - compiled
-    """:func:`_draw_gaussian` compiled once, for the draws off the hot path (a drawn cloud,
-    the navigation's noise): inlined everywhere it made the update's first compilation twice
-    as long."""
-    _draw_gaussian(key, particle, slot, mean, L, offset, out)
 
 
 @njit
@@ -322,16 +323,18 @@ def _range_bearing_cloud(
 def _kernel_from_range_bearing(
     e: np.ndarray,
     shrink: float,
-    y: np.ndarray,
+    local: np.ndarray,
+    row: int,
     E: np.ndarray,
     radius: float,
     offset: np.ndarray,
     p: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """A particle's kernel move ``e + shrink · y`` (its draw and its range–bearing coordinates
-    ``y``) back in the stored frame, in ``p`` (``e`` is overwritten)."""
+    ``y``, row ``row`` of ``local``) back in the stored frame, in ``p`` (``e`` is
+    overwritten)."""
     for k in range(6):
-        e[k] += shrink * y[k]
+        e[k] += shrink * local[row, k]
     azimuth, elevation = e[1] / radius, e[2] / radius
     d0 = e[0] * math.cos(elevation) * math.cos(azimuth)
     d1 = e[0] * math.cos(elevation) * math.sin(azimuth)
@@ -392,16 +395,22 @@ def _advance_run(
             lw[i], weights[i] = -math.log(n), 1.0 / n
     jittered = np.any(jitter != 0.0)
     half, p, e = 0.5 * t * t, np.empty(6), np.empty(6)
+    cloud = drawn if use_drawn else source
+    kernel_mean, kernel_factor = _six(shift), lower_entries(L)
+    nothing, jitter_factor = _six(zero), lower_entries(jitter)
     for i in range(n):
         row = chosen[i] if resample else i
-        p[:] = drawn[row] if use_drawn else source[row]
+        for k in range(6):  # not a view of the row: see gaussian_draw
+            p[k] = cloud[row, k]
         if radius > 0.0:
-            _draw_gaussian(key, i, KERNEL_SLOT, shift, L, zero, e)
-            _kernel_from_range_bearing(e, shrink, local[row], E, radius, offset, p)
-        elif resample and bandwidth > 0.0:
-            _draw_gaussian(key, i, KERNEL_SLOT, shift, L, zero, e)
+            d = gaussian_draw(key, i, KERNEL_SLOT, kernel_mean, kernel_factor)
             for k in range(6):
-                p[k] = e[k] + shrink * p[k]
+                e[k] = d[k]
+            _kernel_from_range_bearing(e, shrink, local, row, E, radius, offset, p)
+        elif resample and bandwidth > 0.0:
+            d = gaussian_draw(key, i, KERNEL_SLOT, kernel_mean, kernel_factor)
+            for k in range(6):
+                p[k] = d[k] + shrink * p[k]
         e0 = normal(key, slot_counter(i, ACCELERATION_SLOT))
         e1 = normal(key, slot_counter(i, ACCELERATION_SLOT + 1))
         e2 = normal(key, slot_counter(i, ACCELERATION_SLOT + 2))
@@ -415,8 +424,8 @@ def _advance_run(
         target[i, 4] = (c[4] - t * u1) + p[4]
         target[i, 5] = (c[5] - t * u2) + p[5]
         if jittered:  # the navigation's process noise, a draw per particle
-            _draw_gaussian_call(key, i, JITTER_SLOT, zero, jitter, zero, p)
+            d = gaussian_draw(key, i, JITTER_SLOT, nothing, jitter_factor)
             for k in range(6):
-                target[i, k] += p[k]
+                target[i, k] += d[k]
     out_log_weights[:] = lw
     moments_into(target, zero, weights, x, P)

@@ -105,6 +105,21 @@ def test_keys_are_a_function_of_the_uniform_alone():
     assert len(set(particle_random.cloud_keys(u).tolist())) == 4
 
 
+def test_a_gaussian_draw_is_the_mean_plus_the_factor_times_the_slots_normals():
+    rng = np.random.default_rng(5)
+    M = rng.standard_normal((6, 6))
+    L = np.linalg.cholesky(M @ M.T + 0.1 * np.eye(6))
+    mean = rng.standard_normal(6)
+    keys = particle_random.cloud_keys(np.array([0.3]))
+    slot = particle_random.KERNEL_SLOT
+    normals = particle_random.standard_normals(keys, 4, slot, 6)[0]
+    factor = particle_advance.lower_entries(L)
+    assert factor == tuple(L[np.tril_indices(6)])
+    for particle in range(4):
+        drawn = particle_advance.gaussian_draw(keys[0], particle, slot, tuple(mean), factor)
+        assert_allclose(drawn, mean + L @ normals[particle], rtol=1e-14, atol=1e-14)
+
+
 def test_psd_factor_is_cholesky_and_tolerates_singular_and_nan_matrices():
     M = np.random.default_rng(3).standard_normal((6, 6))
     M = M @ M.T + 0.1 * np.eye(6)
