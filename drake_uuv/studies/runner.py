@@ -123,11 +123,13 @@ def run_seeds(scenario: Scenario, seeds: Sequence[int]) -> dict[str, Any]:
     information = None
     if all(part[2] is not None for part in parts):
         information = sum(part[2] for part in parts)
+    with np.errstate(over="ignore"):  # a diverged run's norms beyond float32 become inf
+        norms = np.concatenate([part[1] for part in parts]).astype(np.float32)
     return {
         "seeds": np.asarray(seeds, dtype=np.int64),
         "metric_names": names,
         "metrics": np.asarray([[row.get(n, math.nan) for n in names] for row in rows]),
-        "norms": np.concatenate([part[1] for part in parts]).astype(np.float32),
+        "norms": norms,
         "information_sum": information,
     }
 

@@ -2,6 +2,7 @@
 
 import math
 import threading
+import warnings
 
 import numpy as np
 import pytest
@@ -152,3 +153,14 @@ def test_a_batch_holds_its_log_and_its_particles_within_the_budget():
     assert late > 2 * bytes_per_run(20000)
     assert max_batch_size(realistic) * late <= BATCH_LOG_BYTES
     assert (max_batch_size(realistic) + 1) * late > 0.5 * BATCH_LOG_BYTES
+
+
+def test_norms_beyond_float32_become_inf_without_a_warning():
+    # α = 2.2 lies outside the paper's proven interval: the loop grows without bound and its
+    # tracking error passes float32's largest value before step 500.
+    scenario = load_scenario("paper", ["tracking.alpha=2.2", "tracking.allow_unproven_alpha=true"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        norms = run_seeds(scenario, [0])["norms"]
+    assert norms.dtype == np.float32
+    assert np.isinf(norms[0, NORMS.index("tracking")]).any()
