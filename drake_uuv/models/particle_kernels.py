@@ -21,9 +21,10 @@ The periodic update (resampling, regularisation, the move) is
 :func:`drake_uuv.models.particle_advance.cloud_advance`; this module holds the measurement
 update and the pieces both use.
 
-Cost (N = 5000, one run, a loaded 2-core machine): the measurement update about 110 µs, the
-periodic update about 120 µs, 230 µs when it resamples and regularises (numpy's resampling
-prediction, :func:`~drake_uuv.models.particle_filter.pf_predict`, about 1000 µs there).
+Cost (N = 5000, the kernels alone, 4 runs a call, a loaded 2-core machine): the measurement
+update about 95 µs, the periodic update about 95 µs, 245 µs when it resamples and regularises,
+365 µs with the navigation's noise too (numpy's resampling prediction,
+:func:`~drake_uuv.models.particle_filter.pf_predict`, about 1000 µs there).
 """
 
 import math
