@@ -9,10 +9,10 @@ Each row runs ``--runs`` seeds on the kinematic plant, a fifth of them on the ho
 a tenth with a particle filter of 20 000 particles (``studies/shares.py``).
 
 Studies are kept in ``--work`` (default ``out/results``); figures go to ``docs/figures/``.
-On the project's 2-core machine, at 1000 runs a kinematic row, every section but navigation took
-about 70 min (with other work beside it; robustness 21 min, regimes 20 min); the navigation
-section's 136 rows need about 2 h more (its 36 rows with late ranges and a particle cloud cost
-0.3–0.5 s a run).
+At 1000 runs a kinematic row the pages' 280 studies are about 324 min of CPU, 162 min on the
+project's 2-core machine: navigation 198 min (its rows with late ranges and a particle cloud
+cost 0.3–1.0 s a run), robustness 76, regimes 28, attitude 11, the rest 11
+(``python benchmarks/bench_results_pages.py`` times every row on a sample of its seeds).
 Every sentence that states a number takes it from these runs. The results are composed as one
 Markdown text, a ``## `` section per study; ``scripts/results_pages.py`` cuts it into
 ``docs/results/index.md`` and one page per section (the site's results pages). The groups it
