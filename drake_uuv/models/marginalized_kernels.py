@@ -288,15 +288,13 @@ def _move_run(
         row = chosen[i] if resample else i
         for k in range(6):  # not a view of the row: see gaussian_draw
             p[k] = cloud[row, k]
-        if radius > 0.0:
+        if resample and bandwidth > 0.0:  # (a range–bearing kernel, radius > 0, only then)
             d = gaussian_draw(key, i, KERNEL_SLOT, kernel_mean, kernel_factor)
-            for k in range(6):
-                e[k] = d[k]
-            _kernel_from_range_bearing(e, shrink, local, row, E, radius, offset, p)
-        elif resample and bandwidth > 0.0:
-            d = gaussian_draw(key, i, KERNEL_SLOT, kernel_mean, kernel_factor)
-            for k in range(6):
-                p[k] = d[k] + shrink * p[k]
+            if radius > 0.0:
+                _kernel_from_range_bearing(d, e, shrink, local, row, E, radius, offset, p)
+            else:
+                for k in range(6):
+                    p[k] = d[k] + shrink * p[k]
         e0 = normal(key, slot_counter(i, ACCELERATION_SLOT))
         e1 = normal(key, slot_counter(i, ACCELERATION_SLOT + 1))
         e2 = normal(key, slot_counter(i, ACCELERATION_SLOT + 2))

@@ -173,6 +173,10 @@ def _draw_cloud(
     normalise_into(lw, weights)
 
 
+#: The zero mean of the navigation noise's draw.
+_NO_MEAN = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
 @njit
 def _six(v: np.ndarray) -> tuple:  # pragma: no cover - compiled
     """The six values of ``v`` as a tuple."""
@@ -321,6 +325,7 @@ def _range_bearing_cloud(
 
 @njit(fastmath=CONTRACT)
 def _kernel_from_range_bearing(
+    draw: tuple,
     e: np.ndarray,
     shrink: float,
     local: np.ndarray,
@@ -330,11 +335,11 @@ def _kernel_from_range_bearing(
     offset: np.ndarray,
     p: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """A particle's kernel move ``e + shrink · y`` (its draw and its range–bearing coordinates
-    ``y``, row ``row`` of ``local``) back in the stored frame, in ``p`` (``e`` is
-    overwritten)."""
+    """A particle's kernel move ``draw + shrink · y`` (its draw, 6 values, and its
+    range–bearing coordinates ``y``, row ``row`` of ``local``) back in the stored frame, in
+    ``p`` (``e`` is work space)."""
     for k in range(6):
-        e[k] += shrink * local[row, k]
+        e[k] = draw[k] + shrink * local[row, k]
     azimuth, elevation = e[1] / radius, e[2] / radius
     d0 = e[0] * math.cos(elevation) * math.cos(azimuth)
     d1 = e[0] * math.cos(elevation) * math.sin(azimuth)
@@ -394,23 +399,19 @@ def _advance_run(
         for i in range(n):
             lw[i], weights[i] = -math.log(n), 1.0 / n
     jittered = np.any(jitter != 0.0)
-    half, p, e = 0.5 * t * t, np.empty(6), np.empty(6)
-    cloud = drawn if use_drawn else source
-    kernel_mean, kernel_factor = _six(shift), lower_entries(L)
-    nothing, jitter_factor = _six(zero), lower_entries(jitter)
+    half, p, e, cloud = 0.5 * t * t, np.empty(6), np.empty(6), drawn if use_drawn else source
+    kernel_mean, kernel_factor, jitter_factor = _six(shift), lower_entries(L), lower_entries(jitter)
     for i in range(n):
         row = chosen[i] if resample else i
         for k in range(6):  # not a view of the row: see gaussian_draw
             p[k] = cloud[row, k]
-        if radius > 0.0:
+        if resample and bandwidth > 0.0:  # (a range–bearing kernel, radius > 0, only then)
             d = gaussian_draw(key, i, KERNEL_SLOT, kernel_mean, kernel_factor)
-            for k in range(6):
-                e[k] = d[k]
-            _kernel_from_range_bearing(e, shrink, local, row, E, radius, offset, p)
-        elif resample and bandwidth > 0.0:
-            d = gaussian_draw(key, i, KERNEL_SLOT, kernel_mean, kernel_factor)
-            for k in range(6):
-                p[k] = d[k] + shrink * p[k]
+            if radius > 0.0:
+                _kernel_from_range_bearing(d, e, shrink, local, row, E, radius, offset, p)
+            else:
+                for k in range(6):
+                    p[k] = d[k] + shrink * p[k]
         e0 = normal(key, slot_counter(i, ACCELERATION_SLOT))
         e1 = normal(key, slot_counter(i, ACCELERATION_SLOT + 1))
         e2 = normal(key, slot_counter(i, ACCELERATION_SLOT + 2))
@@ -424,7 +425,7 @@ def _advance_run(
         target[i, 4] = (c[4] - t * u1) + p[4]
         target[i, 5] = (c[5] - t * u2) + p[5]
         if jittered:  # the navigation's process noise, a draw per particle
-            d = gaussian_draw(key, i, JITTER_SLOT, nothing, jitter_factor)
+            d = gaussian_draw(key, i, JITTER_SLOT, _NO_MEAN, jitter_factor)
             for k in range(6):
                 target[i, k] += d[k]
     out_log_weights[:] = lw
