@@ -285,6 +285,8 @@ def _move_run(
     cloud = drawn if use_drawn else source
     kernel_mean, kernel_factor = _six(shift), lower_entries(L)
     for i in range(n):
+        # As the particle filter's _advance_run, written out on purpose: one helper for both,
+        # taking the cloud's arrays, measured 19 -> 53 ns a particle (see gaussian_draw).
         row = chosen[i] if resample else i
         for k in range(6):  # not a view of the row: see gaussian_draw
             p[k] = cloud[row, k]
