@@ -75,8 +75,8 @@ def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
         "groups; --group list shows them all)",
         description="Runs every variant of the chosen groups as Monte Carlo studies and writes "
         "OUT/compare.md and OUT/compare.csv. It first prints the runs and an estimate of the "
-        "wall time, from one timed run of each configuration (plant, estimator, particles, "
-        "attitude, steps) among the variants.",
+        "wall time, from two timed batches of each configuration (plant, estimator, "
+        "particles, attitude, steps, late ranges) among the variants.",
     )
     parser.add_argument(
         "--group",

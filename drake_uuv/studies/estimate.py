@@ -1,9 +1,11 @@
 """How long a batch of studies will take, from the measured cost of one run.
 
 A run's cost is set by its configuration (:func:`configuration`): the plant, estimator and
-attitude variants, the particle count and the number of steps (a particle filter or the
-hovering UUV costs ten to a hundred times the paper's kinematic loop with its KF; the rest of
-a variant's settings costs little). :func:`estimate_wall_time` times two short batches of each
+attitude variants, the particle count, the number of steps and whether the estimator takes
+late ranges (a particle filter or the hovering UUV costs ten to a hundred times the paper's
+kinematic loop with its KF, and late ranges, which step each particle through the window of
+ranges still in flight, two to five times a particle filter without them; the rest of a
+variant's settings costs little). :func:`estimate_wall_time` times two short batches of each
 distinct configuration among the runs still to compute, as a study runs them
 (:func:`~drake_uuv.studies.runner.run_seeds`, its diagram built; :func:`time_one_run`), and
 scales:
@@ -17,25 +19,34 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from time import perf_counter
 
+from drake_uuv.models.timing import PingSchedule
 from drake_uuv.scenario import Scenario, scenario_as_dict
 from drake_uuv.studies.runner import max_batch_size, run_seeds
 from drake_uuv.studies.storage import missing_seeds
 from drake_uuv.studies.study import Study
 
-# plant, estimator, particle count ("" without particles), attitude, steps.
-Configuration = tuple[str, str, str, str, int]
+# plant, estimator, particle count ("" without particles), attitude, steps, late ranges.
+Configuration = tuple[str, str, str, str, int, bool]
 
 
 def configuration(scenario: Scenario) -> Configuration:
-    """What sets the cost of a run of ``scenario`` (see the module)."""
+    """What sets the cost of a run of ``scenario`` (see the module). Late ranges: the sonars'
+    ranges arrive after their tick (``sonar.ping_offsets``, ``sonar.latency``) and the
+    estimator models that (``error_model: modelled``)."""
     settings = scenario_as_dict(scenario)
-    particles = settings["estimator"].get("particle_count")
+    estimator = settings["estimator"]
+    particles = estimator.get("particle_count")
+    schedule = PingSchedule(
+        scenario.time_step, tuple(scenario.sonar.ping_offsets), scenario.sonar.latency
+    )
+    late = not schedule.immediate and estimator.get("error_model") == "modelled"
     return (
         settings["plant"]["variant"],
-        settings["estimator"]["variant"],
+        estimator["variant"],
         "" if particles is None else str(particles),
         settings["attitude"]["variant"],
         scenario.steps,
+        late,
     )
 
 
@@ -166,12 +177,13 @@ def format_estimate(estimate: WallTimeEstimate) -> str:
     lines = [
         f"{head}: about {duration(estimate.seconds)} {where},",
         "from two timed batches of each configuration "
-        "(plant, estimator, particles, attitude, steps):",
+        "(plant, estimator, particles, attitude, steps, late ranges):",
     ]
-    for (plant, estimator, particles, attitude, steps), (seconds, runs) in sorted(
+    for (plant, estimator, particles, attitude, steps, late), (seconds, runs) in sorted(
         estimate.costs.items(), key=lambda item: -item[1][0] * item[1][1]
     ):
         name = estimator + (f" {particles}" if particles else "")
         cost = f"{seconds:7.2f} s" if seconds >= 0.1 else f"{seconds * 1e3:6.2f} ms"
-        lines.append(f"  {cost} × {runs:>5}  {plant}, {name}, {attitude}, {steps} steps")
+        timing = ", late ranges" if late else ""
+        lines.append(f"  {cost} × {runs:>5}  {plant}, {name}, {attitude}, {steps} steps{timing}")
     return "\n".join(lines)

@@ -17,9 +17,10 @@ from drake_uuv.studies.estimate import duration, time_one_run
 from drake_uuv.studies.storage import write_part
 from tests.studies.study_helpers import SHORT, synthetic_chunk
 
-KF = ("KinematicUuv", "PaperKf", "", "TrajectoryAttitude", 80)
-KF_FIXED = ("KinematicUuv", "PaperKf", "", "FixedAttitude", 80)
-PF = ("KinematicUuv", "ParticleFilter", "20000", "TrajectoryAttitude", 80)
+KF = ("KinematicUuv", "PaperKf", "", "TrajectoryAttitude", 80, False)
+KF_FIXED = ("KinematicUuv", "PaperKf", "", "FixedAttitude", 80, False)
+PF = ("KinematicUuv", "ParticleFilter", "20000", "TrajectoryAttitude", 80, False)
+PF_LATE = ("KinematicUuv", "ParticleFilter", "20000", "TrajectoryAttitude", 80, True)
 VARIANTS = [
     Variant("kf", "g", ()),
     # Another noise model: the same configuration as "kf", timed once for both.
@@ -31,15 +32,28 @@ VARIANTS = [
 SECONDS = {KF: 0.5, PF: 4.0, KF_FIXED: 0.25}
 
 
-def test_configuration_is_plant_estimator_particles_attitude_and_steps():
+def test_configuration_is_plant_estimator_particles_attitude_steps_and_late_ranges():
     assert configuration(load_scenario("paper")) == (
-        "KinematicUuv", "PaperKf", "", "TrajectoryAttitude", 500,
+        "KinematicUuv", "PaperKf", "", "TrajectoryAttitude", 500, False,
     )  # fmt: skip
     vehicle = load_scenario("paper", ["plant=!HoveringAuv", "estimator=!Ekf", *SHORT])
     # The EKF carries particles for its bridge: their count sets its cost too.
-    assert configuration(vehicle) == ("HoveringAuv", "Ekf", "5000", "TrajectoryAttitude", 80)
+    assert configuration(vehicle) == (
+        "HoveringAuv", "Ekf", "5000", "TrajectoryAttitude", 80, False,
+    )  # fmt: skip
     printed = load_scenario("paper", ["estimator.noise_model=paper_printed"])
     assert configuration(printed) == configuration(load_scenario("paper"))
+
+
+def test_late_ranges_are_their_own_configuration_only_where_the_estimator_models_them():
+    pf = ["estimator=!ParticleFilter {particle_count: 20000}", *SHORT]
+    late = ["sonar.ping_offsets=[0.0, 0.25]", "sonar.latency=0.2"]
+    assert configuration(load_scenario("paper", pf)) == PF
+    # Each particle steps through the window of ranges in flight: a run costs more.
+    assert configuration(load_scenario("paper", [*pf, *late])) == PF_LATE
+    # An estimator that takes every range at its tick pays nothing for the timing.
+    ideal = load_scenario("paper", [*pf, *late, "estimator.error_model=ideal"])
+    assert configuration(ideal) == PF
 
 
 @pytest.fixture
@@ -88,14 +102,15 @@ def test_the_text_states_runs_time_and_what_was_measured():
         variants=4,
         runs_per_variant=10,
         runs=36,
-        costs={KF: (0.5, 16), PF: (4.0, 10), KF_FIXED: (0.25, 10)},
+        costs={KF: (0.5, 16), PF_LATE: (4.0, 10), KF_FIXED: (0.25, 10)},
         workers=2,
     )
     assert format_estimate(estimate) == (
         "36 runs to compute (4 variants × 10 runs, 4 on disk already): about 25 s on 2 workers,\n"
         "from two timed batches of each configuration (plant, estimator, particles, attitude, "
-        "steps):\n"
-        "     4.00 s ×    10  KinematicUuv, ParticleFilter 20000, TrajectoryAttitude, 80 steps\n"
+        "steps, late ranges):\n"
+        "     4.00 s ×    10  KinematicUuv, ParticleFilter 20000, TrajectoryAttitude, 80 steps, "
+        "late ranges\n"
         "     0.50 s ×    16  KinematicUuv, PaperKf, TrajectoryAttitude, 80 steps\n"
         "     0.25 s ×    10  KinematicUuv, PaperKf, FixedAttitude, 80 steps"
     )
