@@ -13,7 +13,6 @@ later ping time: the batch takes its runs' earlier instants at once, then their 
 :func:`instants` and :func:`instant_ranges` are one run's, for the particle cloud.
 """
 
-import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -197,7 +196,7 @@ def gaussian_step(
         outcome.updates.append(
             InstantOutcome(status, update.nis, update.dof, new, q_s, update.gamma)
         )
-    G, B_t = _transition_of_step(t)
+    G, B_t = transition(t)
     outcome.x = (G @ z[:, :, np.newaxis])[:, :, 0] + (B_t @ a[:, :, np.newaxis])[:, :, 0]
     P_next = G @ P_z @ G.T
     outcome.P = 0.5 * (P_next + np.swapaxes(P_next, 1, 2))
@@ -253,9 +252,3 @@ def instant_ranges(host, instant: _Instant, q_s: np.ndarray, step: StepRanges) -
         samples, z, valid, status, q_s, model.attitude_covariance(R_nav),
         extra if extra.any() else None,
     )  # fmt: skip
-
-
-@functools.lru_cache(maxsize=8)
-def _transition_of_step(time_step: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(G(t), B(t))`` of a whole step, formed once."""
-    return transition(time_step)

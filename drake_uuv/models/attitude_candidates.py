@@ -30,6 +30,8 @@ import math
 
 import numpy as np
 
+from drake_uuv.models.so3 import cross_runs
+
 _SMALL = 1e-12
 
 
@@ -37,18 +39,11 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a × b`` along the last axis (broadcasting; ``np.cross`` costs several times more)."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
 def frame_about(u0: np.ndarray) -> np.ndarray:
     """A rotation whose third column is the unit vector ``u0`` (its first two complete it)."""
     helper = np.eye(3)[int(np.argmin(np.abs(u0)))]
-    e1 = _unit(_cross(u0, helper))
-    return np.column_stack([e1, _cross(u0, e1), u0])
+    e1 = _unit(cross_runs(u0, helper))
+    return np.column_stack([e1, cross_runs(u0, e1), u0])
 
 
 def cap_directions(u0: np.ndarray, max_angle: float, rings: int = 6) -> np.ndarray:
@@ -102,7 +97,7 @@ def minimal_rotation_vectors(u0: np.ndarray, directions: np.ndarray) -> np.ndarr
     ``u0`` and ``directions`` (n×3) are unit vectors at less than π from each other (the
     planner's cap is at most π/2); a direction equal to ``u0`` gives the zero vector.
     """
-    cross = _cross(u0, directions)
+    cross = cross_runs(u0, directions)
     sin_angle = np.linalg.norm(cross, axis=1)
     angle = np.arctan2(sin_angle, directions @ u0)
     scale = np.where(sin_angle > _SMALL, angle / np.maximum(sin_angle, _SMALL), 1.0)
@@ -114,7 +109,7 @@ def rotate_vectors(rotation_vectors: np.ndarray, v: np.ndarray) -> np.ndarray:
     angle = np.linalg.norm(rotation_vectors, axis=1)
     axis = rotation_vectors / np.maximum(angle, _SMALL)[:, np.newaxis]
     cos, sin = np.cos(angle)[:, np.newaxis], np.sin(angle)[:, np.newaxis]
-    return v * cos + _cross(axis, v) * sin + axis * (axis @ v)[:, np.newaxis] * (1.0 - cos)
+    return v * cos + cross_runs(axis, v) * sin + axis * (axis @ v)[:, np.newaxis] * (1.0 - cos)
 
 
 def rotation_angles(R: np.ndarray) -> np.ndarray:

@@ -62,6 +62,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_uuv.models.measurement import MIN_RANGE
+from drake_uuv.models.so3 import cross_runs
 
 
 @dataclass(frozen=True)
@@ -125,7 +126,7 @@ def range_attitude_jacobian(p_TS: np.ndarray, q_s: np.ndarray) -> np.ndarray:
     q_s = np.asarray(q_s, dtype=float)
     if q_s.ndim < p_TS.ndim:
         q_s = q_s[..., np.newaxis, :]
-    return np.array([0.5, -0.5])[:, np.newaxis] * np.cross(q_s, u)
+    return np.array([0.5, -0.5])[:, np.newaxis] * cross_runs(q_s, u)
 
 
 def commanded_acceleration_noise(acceleration: np.ndarray, Sigma: np.ndarray) -> np.ndarray:
@@ -185,6 +186,6 @@ def difference_attitude_variance(
     """``(q_s × q)ᵀ Σ_θ (q_s × q)``: the extra variance of the paper's ``Y = q_sᵀ q`` that a
     filter predicts with the turned baseline ``Exp(θ) q_s`` (``(θ × q_s)ᵀ q = θ · (q_s × q)``);
     over leading axes of ``q`` (…×3 or …×6), ``q_s`` (…×3), ``Sigma`` (…×3×3)."""
-    g = np.cross(np.asarray(q_s, dtype=float), np.asarray(q, dtype=float)[..., :3])
+    g = cross_runs(q_s, np.asarray(q, dtype=float)[..., :3])
     value = (g[..., np.newaxis, :] @ Sigma @ g[..., :, np.newaxis])[..., 0, 0]
     return float(value) if np.ndim(value) == 0 else value

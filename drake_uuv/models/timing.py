@@ -30,6 +30,7 @@ its own estimate predicts, ``h₁(x̂(τ₂)) − h₁(x̂(τ₁))``, and adds t
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -101,10 +102,16 @@ def augment(x: np.ndarray, P: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np
     return z, P_z
 
 
+@functools.lru_cache(maxsize=64)
 def transition(tau: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(G(τ), B(τ))``: ``x(τ) = G(τ) z + B(τ) a`` with ``G = [Φ(τ), −B(τ)]`` (6×9)."""
+    """``(G(τ), B(τ))``: ``x(τ) = G(τ) z + B(τ) a`` with ``G = [Φ(τ), −B(τ)]`` (6×9).
+
+    Formed once per ``τ`` and shared, read-only: a step's few ping times repeat every step,
+    and the late-range particle window asked for them tens of thousands of times a study."""
     Phi, B = sub_step(tau)
-    return np.hstack([Phi, -B]), B
+    G = np.hstack([Phi, -B])
+    G.flags.writeable = B.flags.writeable = False
+    return G, B
 
 
 def update_through(
