@@ -4,8 +4,9 @@ A run's cost is set by its configuration (:func:`configuration`): the plant, est
 attitude variants, the particle count, the number of steps and whether the estimator takes
 late ranges (a particle filter or the hovering UUV costs ten to a hundred times the paper's
 kinematic loop with its KF, and late ranges, which step each particle through the window of
-ranges still in flight, two to five times a particle filter without them; the rest of a
-variant's settings costs little). :func:`estimate_wall_time` times two short batches of each
+ranges still in flight, several times a particle filter without them: 0.3-1.0 s a run against
+0.2-0.3 s in the navigation study, ``benchmarks/PROFILE.md``; the rest of a variant's settings
+costs little). :func:`estimate_wall_time` times two short batches of each
 distinct configuration among the runs still to compute, as a study runs them
 (:func:`~drake_uuv.studies.runner.run_seeds`, its diagram built; :func:`time_one_run`), and
 scales:
