@@ -9,8 +9,9 @@ Each row runs ``--runs`` seeds on the kinematic plant, a fifth of them on the ho
 a tenth with a particle filter of 20 000 particles (``studies/shares.py``).
 
 Studies are kept in ``--work`` (default ``out/results``); figures go to ``docs/figures/``.
-At 1000 runs a kinematic row the pages' 280 studies are about 324 min of CPU, 162 min on the
-project's 2-core machine: navigation 198 min (its rows with late ranges and a particle cloud
+At 1000 runs a kinematic row the pages' 280 studies are 324 to 576 min of CPU, 162 to 288 min
+on the project's 2-core machines (measured on two of them, which differ that much): on the
+faster, navigation 198 min (its rows with late ranges and a particle cloud
 cost 0.3–1.0 s a run), robustness 76, regimes 28, attitude 11, the rest 11
 (``python benchmarks/bench_results_pages.py`` times every row on a sample of its seeds).
 Every sentence that states a number takes it from these runs. The results are composed as one
