@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from time import perf_counter
 
-from drake_uuv.models.timing import PingSchedule
+from drake_uuv.estimators.factory import estimator_setting
 from drake_uuv.scenario import Scenario, scenario_as_dict
 from drake_uuv.studies.runner import max_batch_size, run_seeds
 from drake_uuv.studies.storage import missing_seeds
@@ -37,9 +37,7 @@ def configuration(scenario: Scenario) -> Configuration:
     settings = scenario_as_dict(scenario)
     estimator = settings["estimator"]
     particles = estimator.get("particle_count")
-    schedule = PingSchedule(
-        scenario.time_step, tuple(scenario.sonar.ping_offsets), scenario.sonar.latency
-    )
+    schedule = estimator_setting(scenario).ping_schedule
     late = not schedule.immediate and estimator.get("error_model") == "modelled"
     return (
         settings["plant"]["variant"],
