@@ -169,3 +169,28 @@ def test_the_range_bearing_kernel_keeps_a_shell_cloud_on_its_shell() -> None:
         ranges[range_bearing] = np.linalg.norm(out[0, :, :3] + offset[:3], axis=1)
     np.testing.assert_allclose(ranges[True], radius, rtol=1e-13)
     assert np.std(ranges[False]) > 0.01
+
+
+def test_given_its_position_track_a_particle_s_velocity_is_known_to_t2_w_over_4k() -> None:
+    """Closed form. The target's acceleration drives both position and velocity (``Q = B W Bᵀ``,
+    rank 3), so ``v' = 2 (q' − q − t²/2 a) / t − v + t a`` whatever the noise: given the
+    position track a particle's velocity follows from its first one, and each step's
+    displacement measures that with covariance ``t² W / 4``. Hence
+    ``Σ_k = (Σ₀⁻¹ + 4k/t² W⁻¹)⁻¹``, and ``m'`` is that recurrence exactly when ``Σ = 0``. This is
+    why marginalising the velocity leaves the particle filter's Monte Carlo error as it is:
+    the cloud's spread of ``m`` carries the velocity's uncertainty, and ``Σ`` almost none."""
+    W_c = np.array([[0.004, 0.001, 0.0], [0.001, 0.002, 0.0], [0.0, 0.0, 0.001]])
+    _, B_t = double_integrator(T)
+    Q_c = B_t @ W_c @ B_t.T
+    Sigma0 = np.diag([0.5, 0.3, 0.2])
+    Sigma, L, K, Sigma_next = Sigma0.copy(), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    for k in range(1, 301):
+        marginal_gain(Sigma, T, Q_c, L, K, Sigma_next)
+        Sigma = Sigma_next.copy()
+        expected = np.linalg.inv(np.linalg.inv(Sigma0) + 4 * k / T**2 * np.linalg.inv(W_c))
+        np.testing.assert_allclose(Sigma, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+    rng = np.random.default_rng(1)
+    q, m, a, q_next = rng.normal(size=(4, 3))
+    m_next, Sigma_next = condition_on_track(q, m, np.zeros((3, 3)), q_next, a, T, Q_c)
+    np.testing.assert_allclose(m_next, 2 * (q_next - q - T**2 / 2 * a) / T - m + T * a, atol=1e-12)
+    np.testing.assert_allclose(Sigma_next, 0.0, atol=1e-15)
