@@ -439,15 +439,14 @@ class MarginalizedParticleFilter(ParticleFilter):
     linear start costs metres at that noise (seed 22: 2.7 m against 1.0 m). At 3000 particles
     over seeds 0-999: 1.004 ± 0.001 and 1.004 ± 0.002, no tail (worst runs 0.33 m and
     1.75 m, the 5000-particle filter's 0.33 m and 2.25 m), mean NEES 6.30 and 6.22. So within
-    2 % takes 2000 particles in the paper scenario and 3000 at σ = 1 m, as it would the
-    particle filter. Mean NEES at 1000 particles 6.9 and 6.7 (overconfident; 6.2 and 6.1 at
-    5000). Kernel variants at 1000
-    particles, seeds 0-999 unless said: ``particle_kernel: range_bearing`` 1.023 and 1.024
-    (seeds 0-499); with ``particle_bandwidth_scale`` 1.1, 1.023 and 1.032, and 1.25 or 1.5
-    reach 1.018 in the paper scenario but let runs diverge at σ = 1 m. Mapping each resampled
-    cloud affinely onto the weighted cloud's mean and unbiased covariance (range–bearing,
-    scale 1.1; tried, not kept) gave 1.020 ± 0.003 and 1.031 ± 0.009 over seeds 0-1999: on
-    seeds 0-999 alone it had looked within 2 % (1.016 and 1.019)."""
+    2 % takes 2000 particles in the paper scenario and 3000 at σ = 1 m. Mean NEES at 1000
+    particles 6.9 and 6.7 (overconfident; 6.2 and 6.1 at 5000). Kernel variants at 1000
+    particles: ``particle_kernel: range_bearing`` 1.023 and 1.024 (seeds 0-499), with
+    ``particle_bandwidth_scale: 1.1`` as well 1.023 and 1.032 (seeds 0-999); a scale of 1.25
+    or 1.5 reaches 1.018 in the paper scenario but lets runs diverge at σ = 1 m. Mapping each
+    resampled cloud affinely onto the weighted cloud's mean and unbiased covariance
+    (range–bearing, scale 1.1; tried, not kept) gave 1.020 ± 0.003 and 1.031 ± 0.009 over
+    seeds 0-1999: on seeds 0-999 alone it had looked within 2 % (1.016 and 1.019)."""
 
 
 #: The estimator slot. The first member is the default of an untagged section.
