@@ -428,7 +428,7 @@ class MarginalizedParticleFilter(ParticleFilter):
     0.015 % at σ = 1 m (0.025). The velocity's uncertainty rides on the cloud's spread of the
     means, as it rides on the particle filter's velocities, so marginalising removes none of
     the Monte Carlo error. (With the navigation's process noise modelled the noise has full
-    rank and ``Σ`` stays larger.)
+    rank and ``Σ`` no longer vanishes; not measured.)
 
     Measured: position RMSE over the 5000-particle ParticleFilter's, paired by seed (paper;
     σ = 1 m, ``noisy_sonar``). At 1000 particles over seeds 0-1999: 1.031 ± 0.002 and
