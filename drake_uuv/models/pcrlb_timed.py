@@ -59,16 +59,6 @@ def ping_rows(tau: np.ndarray, los: np.ndarray) -> np.ndarray:
     return np.concatenate([u, tau * u, -0.5 * tau * tau * u], axis=-1)
 
 
-def step_transition(tau: float) -> np.ndarray:
-    """``G(τ) = [Φ(τ), −B(τ)]`` (6×9): ``x(τ) = G(τ) z + B(τ) a_k`` for ``z = [x_k, ū_k]``."""
-    G = np.zeros((6, 9))
-    G[:, :6] = np.eye(6)
-    G[:3, 3:6] = tau * np.eye(3)
-    G[:3, 6:] = -0.5 * tau * tau * np.eye(3)
-    G[3:, 6:] = -tau * np.eye(3)
-    return G
-
-
 def _check(
     tau: np.ndarray, lag: np.ndarray, time_step: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

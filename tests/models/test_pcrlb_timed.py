@@ -6,7 +6,7 @@ from numpy.testing import assert_allclose
 
 from drake_uuv.models.measurement import MIN_RANGE
 from drake_uuv.models.pcrlb import pcrlb_along_trajectory, symmetrise
-from drake_uuv.models.pcrlb_timed import pcrlb_timed, ping_rows, step_transition
+from drake_uuv.models.pcrlb_timed import pcrlb_timed, ping_rows
 from tests.conftest import ETA_UNEQUAL, T, W
 
 
@@ -175,6 +175,17 @@ def test_the_bound_is_the_error_covariance_of_simulated_runs() -> None:
     standard_error = np.sqrt((np.outer(np.diag(bound), np.diag(bound)) + bound**2) / runs)
     assert np.all(np.abs(sample - bound) <= 5.0 * standard_error)
     assert y.shape[1] == 4  # pings of steps 0 and 1 by tick 3; step 2's are in flight
+
+
+def step_transition(tau: float) -> np.ndarray:
+    """``G(τ) = [Φ(τ), −B(τ)]`` (6×9), written out here (the package's is
+    :func:`drake_uuv.models.timing.transition`): ``x(τ) = G(τ) z + B(τ) a_k``."""
+    G = np.zeros((6, 9))
+    G[:, :6] = np.eye(6)
+    G[:3, 3:6] = tau * np.eye(3)
+    G[:3, 6:] = -0.5 * tau * tau * np.eye(3)
+    G[3:, 6:] = -tau * np.eye(3)
+    return G
 
 
 def _direct_bound(tau, lag, p_TS, noise, P0, tick) -> np.ndarray:
